@@ -1,0 +1,163 @@
+"""Camera models, unwarpers and remap maps: the contract between the core and unwarper plugins.
+
+An *unwarper* plugin (entry-point group ``omnidev.unwarpers``, entry-point name =
+the calibration ``kind`` it reads) loads a calibration file into a
+:class:`CameraModel`. A camera model projects points of the camera frame
+(docs/conventions.md) to omni-image pixels; from that the core builds maps that
+``cv2.remap`` applies.
+
+Pixel coordinates follow OpenCV: (u, v) = (column, row), the center of the
+top-left pixel is (0, 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal, Protocol, runtime_checkable
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.views import View
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+Interpolation = Literal["linear", "nearest", "cubic"]
+INVALID = -8.0
+"""Map value of pixels the camera does not see: far enough outside for any interpolation."""
+
+_CV_INTERP = {"linear": cv2.INTER_LINEAR, "nearest": cv2.INTER_NEAREST, "cubic": cv2.INTER_CUBIC}
+
+
+@runtime_checkable
+class CameraModel(Protocol):
+    """A calibrated camera that can say where scene points land in its image."""
+
+    kind: str
+    image_size: tuple[int, int]  # (width, height) in pixels
+
+    def default_elevation_deg(self) -> tuple[float, float] | None:
+        """Elevation band (bottom, top) a :class:`~omnidev.views.Panorama` uses by default."""
+        ...
+
+    def project(self, points: FloatArray, *, finite: bool) -> tuple[FloatArray, BoolArray]:
+        """Project (..., 3) camera-frame points (or directions if not finite) to pixels.
+
+        Returns (..., 2) float64 pixel coordinates (u, v) and a (...) validity mask
+        (False where the camera does not see the point or the pixel is outside
+        the image).
+        """
+        ...
+
+
+@runtime_checkable
+class Unwarper(Protocol):
+    """An entry point of group ``omnidev.unwarpers``: loads calibrations of one kind."""
+
+    kind: str
+
+    def load(self, path: Path) -> CameraModel:
+        """Read a calibration file; raise :class:`omnidev.errors.CalibrationError` on bad input."""
+        ...
+
+
+@dataclass(frozen=True)
+class Maps:
+    """Maps from an output view to source-image pixels, for ``cv2.remap``.
+
+    Attributes:
+        map_x, map_y: (H, W) float32 source pixel coordinates (u, v); invalid
+            pixels hold ``INVALID`` (-8, outside any image) so that ``cv2.remap`` with a constant border writes
+            the border value there.
+        valid: (H, W) bool, True where the camera sees the view's point.
+        source_size: (width, height) of the source image the maps expect.
+    """
+
+    map_x: NDArray[np.float32]
+    map_y: NDArray[np.float32]
+    valid: BoolArray
+    source_size: tuple[int, int]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (int(self.map_x.shape[0]), int(self.map_x.shape[1]))
+
+    def fixed_point(self) -> tuple[NDArray[np.int16], NDArray[np.uint16]]:
+        """The same maps as OpenCV's fixed-point pair (CV_16SC2 + CV_16UC1), faster to apply."""
+        m1, m2 = cv2.convertMaps(self.map_x, self.map_y, cv2.CV_16SC2)
+        return m1, m2
+
+
+def maps_from_pixels(uv: FloatArray, valid: BoolArray, source_size: tuple[int, int]) -> Maps:
+    """Pack (H, W, 2) pixel positions and a validity mask into :class:`Maps`.
+
+    Positions outside the source image (with a half-pixel margin) are marked invalid.
+    """
+    w, h = source_size
+    u, v = uv[..., 0], uv[..., 1]
+    inside = (u >= -0.5) & (u <= w - 0.5) & (v >= -0.5) & (v <= h - 0.5)
+    ok = valid & inside & np.isfinite(u) & np.isfinite(v)
+    map_x = np.where(ok, u, INVALID).astype(np.float32)
+    map_y = np.where(ok, v, INVALID).astype(np.float32)
+    return Maps(map_x, map_y, ok, (w, h))
+
+
+def build_maps(camera: CameraModel, view: View) -> Maps:
+    """Remap maps that turn images of ``camera`` into ``view``."""
+    pts = view.points(camera.default_elevation_deg())
+    uv, valid = camera.project(pts, finite=view.finite)
+    return maps_from_pixels(uv, valid, camera.image_size)
+
+
+def unwarp(
+    image: NDArray[np.uint8],
+    maps: Maps,
+    *,
+    interpolation: Interpolation = "linear",
+    border_value: int = 0,
+) -> NDArray[np.uint8]:
+    """Apply ``maps`` to one image (pixels the camera does not see get ``border_value``)."""
+    w, h = maps.source_size
+    if image.shape[1] != w or image.shape[0] != h:
+        raise ValueError(
+            f"image is {image.shape[1]}x{image.shape[0]}, the calibration expects {w}x{h}"
+        )
+    out = cv2.remap(
+        image,
+        maps.map_x,
+        maps.map_y,
+        _CV_INTERP[interpolation],
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=border_value,
+    )
+    return np.asarray(out, dtype=np.uint8)
+
+
+class Remapper:
+    """Applies one set of maps to many frames at the speed of bare ``cv2.remap``.
+
+    The maps are converted once to OpenCV's fixed-point form; invalid pixels
+    read outside the image and get ``border_value``.
+    """
+
+    def __init__(
+        self, maps: Maps, *, interpolation: Interpolation = "linear", border_value: int = 0
+    ) -> None:
+        self.maps = maps
+        self._m1, self._m2 = maps.fixed_point()
+        self._interp = _CV_INTERP[interpolation]
+        self._border = border_value
+
+    def __call__(self, image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        out: NDArray[np.uint8] = cv2.remap(
+            image,
+            self._m1,
+            self._m2,
+            self._interp,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=self._border,
+        )
+        return out

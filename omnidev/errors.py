@@ -1,0 +1,27 @@
+"""Errors that reach a user: each says what is wrong and names the file, row, key or frame.
+
+The CLI prints an :class:`OmnidevError` as one line and exits non-zero; anything
+else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+
+class OmnidevError(Exception):
+    """A user-facing error: bad input, a missing device, an unknown plugin."""
+
+
+class CalibrationError(OmnidevError):
+    """A calibration file or calibration input that cannot be used."""
+
+
+class SourceError(OmnidevError):
+    """A frame source that cannot be opened or stopped delivering."""
+
+
+class PluginError(OmnidevError):
+    """A plugin that is unknown, broken, or registered twice."""
+
+
+class OutputError(OmnidevError):
+    """An output that cannot be written (exists, unwritable directory)."""

@@ -1,0 +1,111 @@
+"""The plugin registry: Python entry points in four groups.
+
+| group               | entry-point name        | the object it loads                          |
+|---------------------|-------------------------|----------------------------------------------|
+| ``omnidev.sources`` | URI scheme (``video``)  | a callable ``open(uri_rest, options)``       |
+| ``omnidev.unwarpers`` | calibration kind      | an :class:`omnidev.camera.Unwarper` (class or instance) |
+| ``omnidev.trackers`` | tracker name           | a tracker factory                            |
+| ``omnidev.sinks``   | sink name               | a sink factory                               |
+
+First-party plugins register exactly as a vendor's would. A plugin that fails
+to import is reported as broken (with its error) and the others keep working;
+two distributions registering one name in one group is a :class:`PluginError`
+naming both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from importlib import metadata
+from typing import Any
+
+from omnidev.errors import PluginError
+
+GROUPS = ("omnidev.sources", "omnidev.unwarpers", "omnidev.trackers", "omnidev.sinks")
+
+
+@dataclass(frozen=True)
+class PluginInfo:
+    """One registered plugin: where it comes from and whether it loads."""
+
+    group: str
+    name: str
+    value: str  # "module:attr"
+    distribution: str
+    version: str
+    error: str | None = None  # set when the plugin failed to import
+
+    @property
+    def broken(self) -> bool:
+        return self.error is not None
+
+
+def _entry_points(group: str) -> list[tuple[metadata.EntryPoint, str, str]]:
+    """(entry point, distribution, version) for a group, one per distribution and name."""
+    seen: dict[tuple[str, str], tuple[metadata.EntryPoint, str, str]] = {}
+    for dist in metadata.distributions():
+        dname = dist.metadata["Name"] or "?"
+        for ep in dist.entry_points:
+            if ep.group == group:
+                seen.setdefault((ep.name, dname), (ep, dname, dist.version))
+    return sorted(seen.values(), key=lambda t: (t[0].name, t[1]))
+
+
+def _load(ep: metadata.EntryPoint) -> tuple[Any, str | None]:
+    try:
+        return ep.load(), None
+    except Exception as exc:  # a broken plugin must not break the others
+        return None, f"{type(exc).__name__}: {exc}"
+
+
+@cache
+def _group(group: str) -> tuple[dict[str, PluginInfo], dict[str, Any]]:
+    infos: dict[str, PluginInfo] = {}
+    objects: dict[str, Any] = {}
+    for ep, dist, version in _entry_points(group):
+        if ep.name in infos:
+            other = infos[ep.name].distribution
+            raise PluginError(
+                f"plugin name {ep.name!r} in group {group} is registered by two distributions: "
+                f"{other} and {dist}; uninstall one of them"
+            )
+        obj, err = _load(ep)
+        infos[ep.name] = PluginInfo(group, ep.name, ep.value, dist, version, err)
+        if err is None:
+            objects[ep.name] = obj
+    return infos, objects
+
+
+def refresh() -> None:
+    """Forget what was discovered (after installing or removing a plugin at run time)."""
+    _group.cache_clear()
+
+
+def plugins(group: str) -> list[PluginInfo]:
+    """Every plugin of a group, broken ones included, sorted by name."""
+    if group not in GROUPS:
+        raise PluginError(f"unknown plugin group {group!r}; groups are {', '.join(GROUPS)}")
+    return sorted(_group(group)[0].values(), key=lambda p: p.name)
+
+
+def get(group: str, name: str) -> Any:
+    """The loaded object of plugin ``name`` in ``group``.
+
+    Raises :class:`PluginError` naming the installed plugins when ``name`` is
+    unknown, or giving the import error when it is broken.
+    """
+    infos, objects = _group(group)
+    if name in objects:
+        return objects[name]
+    if name in infos:
+        info = infos[name]
+        raise PluginError(
+            f"plugin {name!r} ({info.distribution} {info.version}) is broken: {info.error}"
+        )
+    ok = sorted(objects)
+    installed = ", ".join(ok) if ok else "none"
+    kind = {"omnidev.unwarpers": "camera kind", "omnidev.sources": "source scheme"}.get(
+        group, "plugin"
+    )
+    raise PluginError(f"no plugin for {kind} {name!r} in {group}; installed: {installed}")

@@ -1,0 +1,299 @@
+"""Views: what an unwarped image shows, as small value objects.
+
+A view says, for every output pixel, which point (or direction) of the scene it
+shows, in the *camera frame* of docs/conventions.md: origin at the camera's
+viewpoint (the mirror center O_m for a catadioptric camera), z up, x and y
+horizontal, right-handed; azimuth theta = atan2(y, x), elevation
+rho = atan2(z, hypot(x, y)). Lengths are in the unit of the calibration
+(the landmarks' unit for a pano-mapping table).
+
+Output pixel (k, l) (column k, row l, both 0-based) samples the scene at the
+*center* of its cell, i.e. at fraction (k + 0.5) / width across the view. Rows
+go downwards in the scene (row 0 is the top), and columns go to the right as a
+person standing at the viewpoint and looking outward sees it (clockwise seen
+from above), so views are upright and not mirror-imaged.
+
+Every view has ``points(default_elevation_deg)`` returning an (H, W, 3) float64
+array. ``finite`` says whether those are points at a finite distance (planes,
+cylinders) or unit directions (angular panoramas, pinhole views).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+@runtime_checkable
+class View(Protocol):
+    """What every view provides."""
+
+    width: int
+    height: int
+
+    @property
+    def finite(self) -> bool: ...
+
+    def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray: ...
+
+
+def _check_size(width: int, height: int) -> None:
+    if int(width) != width or int(height) != height or width < 1 or height < 1:
+        raise ValueError(f"view size must be positive integers, got {width} x {height}")
+
+
+def _centers(n: int, lo: float, hi: float) -> FloatArray:
+    """Cell-center samples of [lo, hi] in n cells, from lo to hi."""
+    return lo + (np.arange(n, dtype=np.float64) + 0.5) * ((hi - lo) / n)
+
+
+def _azimuths(width: int, start_deg: float, span_deg: float, clockwise: bool) -> FloatArray:
+    sign = -1.0 if clockwise else 1.0
+    return np.radians(start_deg + sign * _centers(width, 0.0, span_deg))
+
+
+@dataclass(frozen=True)
+class Panorama:
+    """Generic (angular) panorama: columns sample azimuth, rows sample elevation linearly.
+
+    This is the dissertation's generic panoramic image (sec. 4.2.3 A) when
+    ``elevation_deg`` is the table's elevation range.
+
+    Args:
+        width, height: output size in pixels.
+        elevation_deg: (bottom, top) elevation of the band in degrees; ``None``
+            takes the camera's full elevation range.
+        azimuth_start_deg: azimuth of the left edge of column 0, degrees.
+        azimuth_span_deg: azimuth covered by the width, degrees (360 = all around).
+        clockwise: columns advance clockwise seen from above (upright, not
+            mirror-imaged); False follows eq. 4.9's increasing azimuth.
+    """
+
+    width: int
+    height: int
+    elevation_deg: tuple[float, float] | None = None
+    azimuth_start_deg: float = 0.0
+    azimuth_span_deg: float = 360.0
+    clockwise: bool = True
+
+    def __post_init__(self) -> None:
+        _check_size(self.width, self.height)
+
+    @property
+    def finite(self) -> bool:
+        return False
+
+    def angles(
+        self, default_elevation_deg: tuple[float, float] | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Azimuth per column (W,) and elevation per row (H,), radians."""
+        band = self.elevation_deg or default_elevation_deg
+        if band is None:
+            raise ValueError("Panorama needs elevation_deg when the camera gives no default")
+        bottom, top = band
+        theta = _azimuths(self.width, self.azimuth_start_deg, self.azimuth_span_deg, self.clockwise)
+        rho = np.radians(_centers(self.height, top, bottom))
+        return theta, rho
+
+    def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
+        theta, rho = self.angles(default_elevation_deg)
+        t, r = np.meshgrid(theta, rho)
+        return np.stack([np.cos(r) * np.cos(t), np.cos(r) * np.sin(t), np.sin(r)], axis=-1)
+
+
+@dataclass(frozen=True)
+class CylinderPanorama:
+    """Specific panorama: the scene projected on a vertical cylinder (sec. 4.2.3 B).
+
+    Args:
+        width, height: output size in pixels.
+        distance: cylinder radius D around the viewpoint.
+        z_bottom, z_top: heights of the band's bottom and top edges relative
+            to the viewpoint (the dissertation's band is z_bottom=0, z_top=H).
+        azimuth_start_deg, azimuth_span_deg, clockwise: as in :class:`Panorama`.
+    """
+
+    width: int
+    height: int
+    distance: float
+    z_bottom: float
+    z_top: float
+    azimuth_start_deg: float = 0.0
+    azimuth_span_deg: float = 360.0
+    clockwise: bool = True
+
+    def __post_init__(self) -> None:
+        _check_size(self.width, self.height)
+        if not self.distance > 0:
+            raise ValueError(f"CylinderPanorama distance must be > 0, got {self.distance}")
+
+    @property
+    def finite(self) -> bool:
+        return True
+
+    def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
+        theta = _azimuths(self.width, self.azimuth_start_deg, self.azimuth_span_deg, self.clockwise)
+        z = _centers(self.height, self.z_top, self.z_bottom)
+        t, zz = np.meshgrid(theta, z)
+        d = self.distance
+        return np.stack([d * np.cos(t), d * np.sin(t), zz], axis=-1)
+
+
+@dataclass(frozen=True)
+class PlaneView:
+    """Perspective view of a vertical W x H plane (sec. 4.2.3 C).
+
+    The plane faces the viewpoint: its center is at horizontal distance
+    ``distance`` in direction ``azimuth_deg``, it spans ``plane_width``
+    horizontally and heights ``z_bottom``..``z_top``.
+
+    The dissertation gives D as the distance from O_m to the plane's two
+    vertical edges (Fig. 4.6); :meth:`from_dissertation` converts.
+    """
+
+    width: int
+    height: int
+    distance: float
+    plane_width: float
+    z_bottom: float
+    z_top: float
+    azimuth_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_size(self.width, self.height)
+        if not (self.distance > 0 and self.plane_width > 0 and self.z_top != self.z_bottom):
+            raise ValueError("PlaneView needs distance > 0, plane_width > 0 and z_top != z_bottom")
+
+    @classmethod
+    def from_dissertation(
+        cls,
+        width: int,
+        height: int,
+        edge_distance: float,
+        plane_width: float,
+        plane_height: float,
+        azimuth_deg: float = 0.0,
+    ) -> PlaneView:
+        """The view of Fig. 4.6: edges at distance D from O_m, band 0..H."""
+        if plane_width >= 2 * edge_distance:
+            raise ValueError("plane_width must be < 2 * edge_distance (eq. 4.14)")
+        d = math.sqrt(edge_distance**2 - (plane_width / 2) ** 2)
+        return cls(width, height, d, plane_width, 0.0, plane_height, azimuth_deg)
+
+    @property
+    def finite(self) -> bool:
+        return True
+
+    def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
+        a = math.radians(self.azimuth_deg)
+        center = np.array([math.cos(a), math.sin(a), 0.0]) * self.distance
+        right = np.array([math.sin(a), -math.cos(a), 0.0])
+        s = _centers(self.width, -self.plane_width / 2, self.plane_width / 2)
+        z = _centers(self.height, self.z_top, self.z_bottom)
+        ss, zz = np.meshgrid(s, z)
+        pts = center + ss[..., None] * right
+        pts[..., 2] = zz
+        return pts
+
+
+@dataclass(frozen=True)
+class Perspective:
+    """A virtual pinhole camera at the viewpoint.
+
+    Args:
+        width, height: output size in pixels (square pixels).
+        fov_deg: horizontal field of view, degrees (< 180).
+        pan_deg: azimuth of the optical axis, degrees.
+        tilt_deg: elevation of the optical axis, degrees (+ looks up).
+        roll_deg: rotation about the optical axis, degrees (+ turns the image
+            clockwise as seen by the viewer).
+    """
+
+    width: int
+    height: int
+    fov_deg: float
+    pan_deg: float = 0.0
+    tilt_deg: float = 0.0
+    roll_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_size(self.width, self.height)
+        if not 0 < self.fov_deg < 180:
+            raise ValueError(f"Perspective fov_deg must be in (0, 180), got {self.fov_deg}")
+
+    @property
+    def finite(self) -> bool:
+        return False
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length of the virtual camera in output pixels."""
+        return self.width / 2 / math.tan(math.radians(self.fov_deg) / 2)
+
+    def rotation(self) -> FloatArray:
+        """3x3 matrix whose columns are the view's right, down, forward axes in the camera frame."""
+        p, t, r = (math.radians(v) for v in (self.pan_deg, self.tilt_deg, self.roll_deg))
+        fwd = np.array([math.cos(t) * math.cos(p), math.cos(t) * math.sin(p), math.sin(t)])
+        right = np.array([math.sin(p), -math.cos(p), 0.0])
+        down = np.cross(fwd, right)
+        right_r = math.cos(r) * right - math.sin(r) * down
+        down_r = math.sin(r) * right + math.cos(r) * down
+        return np.stack([right_r, down_r, fwd], axis=1)
+
+    def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
+        f = self.focal_px
+        x = (np.arange(self.width) + 0.5 - self.width / 2) / f
+        y = (np.arange(self.height) + 0.5 - self.height / 2) / f
+        xx, yy = np.meshgrid(x, y)
+        rays = np.stack([xx, yy, np.ones_like(xx)], axis=-1) @ self.rotation().T
+        return rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class TopView:
+    """A horizontal plane at height z seen from above, as a map.
+
+    Image u goes to +x and image v to -y (north up when +y is north), so the
+    result is the plane as seen from above, not mirror-imaged.
+
+    Args:
+        width, height: output size in pixels.
+        extent_x, extent_y: size of the shown rectangle along x and y.
+        z: height of the plane relative to the viewpoint (negative = below).
+        center_x, center_y: center of the shown rectangle.
+    """
+
+    width: int
+    height: int
+    extent_x: float
+    extent_y: float
+    z: float
+    center_x: float = 0.0
+    center_y: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_size(self.width, self.height)
+        if not (self.extent_x > 0 and self.extent_y > 0):
+            raise ValueError("TopView extents must be > 0")
+
+    @property
+    def finite(self) -> bool:
+        return True
+
+    def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
+        x = _centers(self.width, self.center_x - self.extent_x / 2, self.center_x + self.extent_x / 2)
+        y = _centers(self.height, self.center_y + self.extent_y / 2, self.center_y - self.extent_y / 2)
+        xx, yy = np.meshgrid(x, y)
+        return np.stack([xx, yy, np.full_like(xx, self.z)], axis=-1)
+
+
+def azimuth_elevation(points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Azimuth atan2(y, x) and elevation atan2(z, hypot(x, y)) of (..., 3) points, radians."""
+    x, y, z = points[..., 0], points[..., 1], points[..., 2]
+    return np.arctan2(y, x), np.arctan2(z, np.hypot(x, y))
