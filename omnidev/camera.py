@@ -12,6 +12,7 @@ top-left pixel is (0, 0).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, Protocol, runtime_checkable
@@ -59,8 +60,12 @@ class Unwarper(Protocol):
 
     kind: str
 
-    def load(self, path: Path) -> CameraModel:
-        """Read a calibration file; raise :class:`omnidev.errors.CalibrationError` on bad input."""
+    def load(self, path: Path, options: Mapping[str, str]) -> CameraModel:
+        """Read a calibration file; raise :class:`omnidev.errors.CalibrationError` on bad input.
+
+        ``options`` are the user's ``--camera-option KEY=VALUE`` settings; an
+        unwarper rejects keys it does not know with a CalibrationError.
+        """
         ...
 
 
@@ -70,7 +75,8 @@ class Maps:
 
     Attributes:
         map_x, map_y: (H, W) float32 source pixel coordinates (u, v); invalid
-            pixels hold ``INVALID`` (-8, outside any image) so that ``cv2.remap`` with a constant border writes
+            pixels hold ``INVALID`` (-8, outside any image) so that
+            ``cv2.remap`` with a constant border writes
             the border value there.
         valid: (H, W) bool, True where the camera sees the view's point.
         source_size: (width, height) of the source image the maps expect.
@@ -88,7 +94,7 @@ class Maps:
     def fixed_point(self) -> tuple[NDArray[np.int16], NDArray[np.uint16]]:
         """The same maps as OpenCV's fixed-point pair (CV_16SC2 + CV_16UC1), faster to apply."""
         m1, m2 = cv2.convertMaps(self.map_x, self.map_y, cv2.CV_16SC2)
-        return m1, m2
+        return np.asarray(m1, np.int16), np.asarray(m2, np.uint16)
 
 
 def maps_from_pixels(uv: FloatArray, valid: BoolArray, source_size: tuple[int, int]) -> Maps:
@@ -152,7 +158,7 @@ class Remapper:
         self._border = border_value
 
     def __call__(self, image: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        out: NDArray[np.uint8] = cv2.remap(
+        out = cv2.remap(
             image,
             self._m1,
             self._m2,
@@ -160,4 +166,4 @@ class Remapper:
             borderMode=cv2.BORDER_CONSTANT,
             borderValue=self._border,
         )
-        return out
+        return np.asarray(out, np.uint8)

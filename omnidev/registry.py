@@ -3,7 +3,7 @@
 | group               | entry-point name        | the object it loads                          |
 |---------------------|-------------------------|----------------------------------------------|
 | ``omnidev.sources`` | URI scheme (``video``)  | a callable ``open(uri_rest, options)``       |
-| ``omnidev.unwarpers`` | calibration kind      | an :class:`omnidev.camera.Unwarper` (class or instance) |
+| ``omnidev.unwarpers`` | calibration kind      | an :class:`~omnidev.camera.Unwarper` class |
 | ``omnidev.trackers`` | tracker name           | a tracker factory                            |
 | ``omnidev.sinks``   | sink name               | a sink factory                               |
 

@@ -34,8 +34,11 @@ FloatArray = NDArray[np.float64]
 class View(Protocol):
     """What every view provides."""
 
-    width: int
-    height: int
+    @property
+    def width(self) -> int: ...
+
+    @property
+    def height(self) -> int: ...
 
     @property
     def finite(self) -> bool: ...
@@ -197,7 +200,7 @@ class PlaneView:
         s = _centers(self.width, -self.plane_width / 2, self.plane_width / 2)
         z = _centers(self.height, self.z_top, self.z_bottom)
         ss, zz = np.meshgrid(s, z)
-        pts = center + ss[..., None] * right
+        pts: FloatArray = center + ss[..., None] * right
         pts[..., 2] = zz
         return pts
 
@@ -252,7 +255,8 @@ class Perspective:
         y = (np.arange(self.height) + 0.5 - self.height / 2) / f
         xx, yy = np.meshgrid(x, y)
         rays = np.stack([xx, yy, np.ones_like(xx)], axis=-1) @ self.rotation().T
-        return rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+        out: FloatArray = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+        return out
 
 
 @dataclass(frozen=True)
@@ -287,8 +291,12 @@ class TopView:
         return True
 
     def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
-        x = _centers(self.width, self.center_x - self.extent_x / 2, self.center_x + self.extent_x / 2)
-        y = _centers(self.height, self.center_y + self.extent_y / 2, self.center_y - self.extent_y / 2)
+        x = _centers(
+            self.width, self.center_x - self.extent_x / 2, self.center_x + self.extent_x / 2
+        )
+        y = _centers(
+            self.height, self.center_y + self.extent_y / 2, self.center_y - self.extent_y / 2
+        )
         xx, yy = np.meshgrid(x, y)
         return np.stack([xx, yy, np.full_like(xx, self.z)], axis=-1)
 

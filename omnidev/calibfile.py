@@ -1,0 +1,128 @@
+"""Calibration files: cv2.FileStorage (YAML, XML or JSON, optionally .gz) with a ``kind``.
+
+Every calibration file omnidev writes has two top-level nodes besides its data:
+``kind`` (the camera kind, which names the unwarper plugin that reads it) and
+``format_version`` (an integer the plugin checks). :func:`load_camera` reads
+the kind and hands the file to the registered unwarper.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from omnidev import registry
+from omnidev.atomic import atomic_path
+from omnidev.camera import CameraModel
+from omnidev.errors import CalibrationError
+
+UNWARPERS = "omnidev.unwarpers"
+
+
+@contextmanager
+def open_storage(path: Path) -> Iterator[cv2.FileStorage]:
+    """Open a FileStorage for reading; a clear error for a missing or unparsable file."""
+    path = Path(path)
+    if not path.is_file():
+        raise CalibrationError(f"{path}: calibration file not found")
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError) as exc:
+        text = str(exc.__cause__ or exc)
+        msg = text.split("error:", 1)[-1].strip().splitlines()[0] if text else "parse error"
+        raise CalibrationError(f"{path}: not a readable OpenCV FileStorage file ({msg})") from None
+    if not fs.isOpened():
+        raise CalibrationError(f"{path}: not a readable OpenCV FileStorage file")
+    try:
+        yield fs
+    finally:
+        fs.release()
+
+
+def read_string(fs: cv2.FileStorage, path: Path, key: str) -> str:
+    node = fs.getNode(key)
+    if node.empty() or not node.isString():
+        raise CalibrationError(f"{path}: missing text key {key!r}")
+    return str(node.string())
+
+
+def read_real(fs: cv2.FileStorage, path: Path, key: str) -> float:
+    node = fs.getNode(key)
+    if node.empty() or not (node.isReal() or node.isInt()):
+        raise CalibrationError(f"{path}: missing number key {key!r}")
+    value = float(node.real())
+    if not np.isfinite(value):
+        raise CalibrationError(f"{path}: key {key!r} is not finite")
+    return value
+
+
+def read_mat(fs: cv2.FileStorage, path: Path, key: str) -> np.ndarray[Any, Any]:
+    node = fs.getNode(key)
+    mat = None if node.empty() else node.mat()
+    if mat is None:
+        raise CalibrationError(f"{path}: missing matrix key {key!r}")
+    arr = np.asarray(mat)
+    if not np.all(np.isfinite(arr)):
+        raise CalibrationError(f"{path}: matrix {key!r} has non-finite values")
+    return arr
+
+
+def read_kind(path: Path) -> str:
+    """The ``kind`` of a calibration file."""
+    with open_storage(path) as fs:
+        return read_string(fs, path, "kind")
+
+
+def check_header(fs: cv2.FileStorage, path: Path, kind: str, version: int) -> None:
+    """Raise unless the file is of ``kind`` and at most format ``version``."""
+    got = read_string(fs, path, "kind")
+    if got != kind:
+        raise CalibrationError(f"{path}: a calibration of kind {got!r}, not {kind!r}")
+    v = int(read_real(fs, path, "format_version"))
+    if v != version:
+        raise CalibrationError(
+            f"{path}: {kind} format version {v}; this omnidev reads version {version}"
+        )
+
+
+def write_storage(
+    path: Path, kind: str, version: int, nodes: Mapping[str, Any], *, force: bool = False
+) -> None:
+    """Write ``nodes`` (str, int, float, ndarray) atomically with the kind/version header."""
+    with atomic_path(Path(path), force=force) as tmp:
+        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
+        if not fs.isOpened():
+            raise CalibrationError(f"{path}: cannot write (unknown extension? use .yml or .yml.gz)")
+        fs.write("kind", kind)
+        fs.write("format_version", version)
+        for key, value in nodes.items():
+            if isinstance(value, np.ndarray):
+                fs.write(key, value)
+            elif isinstance(value, bool | int):
+                fs.write(key, int(value))
+            elif isinstance(value, float):
+                fs.write(key, value)
+            else:
+                fs.write(key, str(value))
+        fs.release()
+
+
+def load_camera(path: Path | str, options: Mapping[str, str] | None = None) -> CameraModel:
+    """Load a calibration of any registered kind: the file's ``kind`` picks the unwarper.
+
+    Raises :class:`CalibrationError` for unreadable files and
+    :class:`omnidev.errors.PluginError` naming the installed kinds for an
+    unknown kind.
+    """
+    path = Path(path)
+    kind = read_kind(path)
+    unwarper = registry.get(UNWARPERS, kind)
+    if isinstance(unwarper, type):
+        unwarper = unwarper()
+    camera: CameraModel = unwarper.load(path, dict(options or {}))
+    return camera

@@ -1,0 +1,88 @@
+"""Landmark files: CSV with header ``u,v,X,Y,Z`` (image pixels; world coordinates, one unit)."""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.errors import CalibrationError
+
+COLUMNS = ("u", "v", "X", "Y", "Z")
+
+
+@dataclass(frozen=True)
+class Landmarks:
+    """Landmark pairs: (n, 2) pixels ``uv``, (n, 3) world points ``xyz``, CSV line numbers ``rows``."""
+
+    uv: NDArray[np.float64]
+    xyz: NDArray[np.float64]
+    rows: tuple[int, ...]
+
+
+def read_landmarks_csv(path: Path) -> Landmarks:
+    """Read a landmark CSV; every error names the file and the line (and column)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise CalibrationError(f"{path}: landmark file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{path}: cannot read landmark file ({exc})") from None
+    reader = csv.reader(text.splitlines())
+    header = next(reader, None)
+    if header is None:
+        raise CalibrationError(f"{path}: empty file; expected a header line u,v,X,Y,Z")
+    names = [h.strip() for h in header]
+    missing = [c for c in COLUMNS if c not in names]
+    if missing:
+        raise CalibrationError(
+            f"{path} line 1: header lacks column(s) {', '.join(missing)} "
+            f"(expected u,v,X,Y,Z, got {','.join(names)})"
+        )
+    idx = [names.index(c) for c in COLUMNS]
+    values: list[list[float]] = []
+    rows: list[int] = []
+    for lineno, fields in enumerate(reader, start=2):
+        if not fields or all(not f.strip() for f in fields) or fields[0].lstrip().startswith("#"):
+            continue
+        if len(fields) != len(names):
+            raise CalibrationError(
+                f"{path} line {lineno}: {len(fields)} fields, the header has {len(names)}"
+            )
+        row: list[float] = []
+        for col, i in zip(COLUMNS, idx, strict=True):
+            raw = fields[i].strip()
+            try:
+                x = float(raw)
+            except ValueError:
+                raise CalibrationError(
+                    f"{path} line {lineno}: column {col} is {raw!r}, not a number"
+                ) from None
+            if not math.isfinite(x):
+                raise CalibrationError(f"{path} line {lineno}: column {col} is not finite ({raw})")
+            row.append(x)
+        values.append(row)
+        rows.append(lineno)
+    if not values:
+        raise CalibrationError(f"{path}: no landmark rows after the header")
+    arr = np.array(values, np.float64)
+    return Landmarks(arr[:, :2], arr[:, 2:], tuple(rows))
+
+
+def parse_floats(text: str, n: int, what: str) -> tuple[float, ...]:
+    """Parse ``"a,b[,c]"`` into n finite floats; error names ``what``."""
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        vals = tuple(float(p) for p in parts)
+    except ValueError:
+        raise CalibrationError(
+            f"{what} must be {n} comma-separated numbers, got {text!r}"
+        ) from None
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise CalibrationError(f"{what} must be {n} comma-separated finite numbers, got {text!r}")
+    return vals

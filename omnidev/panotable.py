@@ -1,0 +1,412 @@
+"""Pano-mapping tables (dissertation ch. 4): learn a camera from landmarks, unwarp with a table.
+
+Frames and units (docs/conventions.md):
+
+- World: the landmarks' frame, Z up, any length unit. The *camera frame* is the
+  world frame translated to the mirror center O_m (no rotation): x, y
+  horizontal, z up.
+- Azimuth theta = atan2(y, x) and elevation rho = atan2(z, hypot(x, y)) of a
+  point in the camera frame, radians.
+- Image: (u, v) = (column, row) pixels, OpenCV convention (center of the
+  top-left pixel is (0, 0)); (u0, v0) is the image center (the image of O_m).
+  phi = atan2(v - v0, u - u0) is a pixel's angle and r = hypot(u - u0, v - v0)
+  its radius.
+
+The model: r = f_r(rho) = a0 + a1 rho + a2 rho^2 + a3 rho^3 + a4 rho^4 (eq. 4.2)
+and phi = s * theta + phi0. The dissertation's azimuth mapping is the identity
+(s = +1, phi0 = 0, sec. 4.2.2); omnidev can also fit s (the mirror's handedness)
+and phi0 (the camera's rotation about its axis) from the landmarks, so the world
+axes need not be aligned with the image axes.
+
+Table entry E_ij (Algorithm 2) holds the *absolute* pixel (u, v) of
+theta_i = i 2 pi / M (eq. 4.5) and rho_j = rho_s + j (rho_e - rho_s) / N (eq. 4.6);
+the array is stored as (N, M, 2): row j, column i.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.errors import CalibrationError
+from omnidev.views import azimuth_elevation
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+Lookup = Literal["bilinear", "nearest", "analytic"]
+LOOKUPS: tuple[Lookup, ...] = ("bilinear", "nearest", "analytic")
+AzimuthModel = Literal["fit", "identity"]
+
+DEGREE = 4
+MIN_LANDMARKS = DEGREE + 1
+MAX_CONDITION = 1e8
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class LandmarkPolar:
+    """Landmarks in polar form: elevation/azimuth in the scene, radius/angle in the image."""
+
+    rho: FloatArray  # elevation, rad
+    theta: FloatArray  # azimuth, rad
+    r: FloatArray  # image radius from (u0, v0), px
+    phi: FloatArray  # image angle atan2(v - v0, u - u0), rad
+
+
+def landmarks_to_polar(
+    uv: FloatArray, xyz_world: FloatArray, mirror_center: FloatArray, image_center: FloatArray
+) -> LandmarkPolar:
+    """Algorithm 1 steps 1-2: eqs. 4.3-4.4 for every landmark.
+
+    Args:
+        uv: (n, 2) landmark pixels.
+        xyz_world: (n, 3) landmark world points.
+        mirror_center: (3,) world position of O_m.
+        image_center: (2,) pixel (u0, v0).
+    """
+    p = np.asarray(xyz_world, np.float64) - np.asarray(mirror_center, np.float64)
+    theta, rho = azimuth_elevation(p)
+    d = np.asarray(uv, np.float64) - np.asarray(image_center, np.float64)
+    return LandmarkPolar(rho, theta, np.hypot(d[:, 0], d[:, 1]), np.arctan2(d[:, 1], d[:, 0]))
+
+
+@dataclass(frozen=True)
+class RadialFit:
+    """Result of Algorithm 1: the radial stretching function and how well it fits."""
+
+    coeffs: FloatArray  # (5,) a0..a4, r in px for rho in rad
+    condition: float  # condition number of the (column-scaled) least-squares system
+    residual_px: FloatArray  # (n,) f_r(rho_k) - r_k
+
+    @property
+    def rms_px(self) -> float:
+        return float(np.sqrt(np.mean(self.residual_px**2)))
+
+
+def radial(coeffs: FloatArray, rho: FloatArray | float) -> FloatArray:
+    """Evaluate f_r(rho) = sum a_i rho^i (eq. 4.2); rho in rad, result in px."""
+    return np.asarray(np.polynomial.polynomial.polyval(rho, coeffs), np.float64)
+
+
+def fit_radial(rho: FloatArray, r: FloatArray) -> RadialFit:
+    """Algorithm 1 step 3: least-squares fit of the 4th-degree f_r to (rho_k, r_k).
+
+    The system is solved with columns scaled by the largest |rho| for
+    conditioning; coefficients are returned for unscaled rho.
+
+    Raises:
+        CalibrationError: fewer than 5 landmarks, non-finite values, fewer than 5
+            distinct elevations, or an ill-conditioned system.
+    """
+    rho = np.asarray(rho, np.float64)
+    r = np.asarray(r, np.float64)
+    n = rho.size
+    if n < MIN_LANDMARKS:
+        raise CalibrationError(
+            f"{n} landmarks: the 4th-degree radial function needs at least {MIN_LANDMARKS}"
+        )
+    bad = np.flatnonzero(~(np.isfinite(rho) & np.isfinite(r)))
+    if bad.size:
+        raise CalibrationError(f"landmark {int(bad[0])} has a non-finite elevation or radius")
+    distinct = np.unique(np.round(rho, 6)).size
+    if distinct < MIN_LANDMARKS:
+        raise CalibrationError(
+            f"landmarks span only {distinct} distinct elevations; the fit needs "
+            f"{MIN_LANDMARKS} (spread landmarks from near the image center to the rim)"
+        )
+    scale = float(np.max(np.abs(rho))) or 1.0
+    A = np.vander(rho / scale, DEGREE + 1, increasing=True)
+    norms = np.linalg.norm(A, axis=0)
+    An = A / norms
+    cond = float(np.linalg.cond(An))
+    if not np.isfinite(cond) or cond > MAX_CONDITION:
+        raise CalibrationError(
+            f"the radial fit is ill-conditioned (condition number {cond:.3g}): the landmarks' "
+            "elevations are too close together; add landmarks at other elevations"
+        )
+    b, *_ = np.linalg.lstsq(An, r, rcond=None)
+    coeffs = b / norms / scale ** np.arange(DEGREE + 1)
+    return RadialFit(coeffs, cond, radial(coeffs, rho) - r)
+
+
+def wrap_angle(a: FloatArray | float) -> FloatArray:
+    """Angle(s) wrapped to (-pi, pi]."""
+    return np.asarray(np.pi - np.mod(np.pi - np.asarray(a, np.float64), TWO_PI))
+
+
+def fit_azimuth(theta: FloatArray, phi: FloatArray) -> tuple[int, float, FloatArray]:
+    """Fit phi = s theta + phi0 (s = +-1) by the circular mean; returns (s, phi0, residual rad)."""
+    best: tuple[int, float, FloatArray] | None = None
+    for s in (1, -1):
+        d = phi - s * theta
+        phi0 = float(np.arctan2(np.mean(np.sin(d)), np.mean(np.cos(d))))
+        res = wrap_angle(d - phi0)
+        if best is None or float(np.sum(res**2)) < float(np.sum(best[2] ** 2)):
+            best = (s, phi0, res)
+    assert best is not None
+    return best
+
+
+@dataclass(frozen=True)
+class PanoTable:
+    """A pano-mapping table and the model that filled it.
+
+    Attributes:
+        coeffs: a0..a4 of f_r (px for rho in rad).
+        image_center: (u0, v0) px.
+        image_size: (width, height) px of the omni-images.
+        rho_range: (rho_s, rho_e) rad, the elevations the table covers.
+        M, N: azimuth and elevation divisions (eqs. 4.5-4.6).
+        azimuth_sign, azimuth_offset: s and phi0 (rad) of phi = s theta + phi0.
+        cutoff_radius: px; pixels nearer the center are the camera's own
+            reflection and are not used (0 = none).
+    """
+
+    coeffs: FloatArray
+    image_center: tuple[float, float]
+    image_size: tuple[int, int]
+    rho_range: tuple[float, float]
+    M: int
+    N: int
+    azimuth_sign: int = 1
+    azimuth_offset: float = 0.0
+    cutoff_radius: float = 0.0
+    _table: FloatArray | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.M < 4 or self.N < 2:
+            raise CalibrationError(f"table size {self.M}x{self.N} is too small (M >= 4, N >= 2)")
+        if not self.rho_range[1] > self.rho_range[0]:
+            raise CalibrationError("elevation range must have rho_e > rho_s")
+        if self.azimuth_sign not in (1, -1):
+            raise CalibrationError("azimuth_sign must be +1 or -1")
+
+    @property
+    def thetas(self) -> FloatArray:
+        """theta_i = i 2pi / M (eq. 4.5), rad."""
+        return np.arange(self.M, dtype=np.float64) * (TWO_PI / self.M)
+
+    @property
+    def rhos(self) -> FloatArray:
+        """rho_j = j (rho_e - rho_s) / N + rho_s (eq. 4.6), rad."""
+        rs, re = self.rho_range
+        return np.arange(self.N, dtype=np.float64) * ((re - rs) / self.N) + rs
+
+    @property
+    def table(self) -> FloatArray:
+        """(N, M, 2) absolute pixels (u, v) of every entry (Algorithm 2, eqs. 4.7-4.8)."""
+        if self._table is None:
+            object.__setattr__(self, "_table", self.fill())
+        assert self._table is not None
+        return self._table
+
+    def fill(self) -> FloatArray:
+        """Algorithm 2: compute every entry from f_r and the azimuth mapping."""
+        r = radial(self.coeffs, self.rhos)[:, None]
+        phi = self.azimuth_sign * self.thetas[None, :] + self.azimuth_offset
+        u0, v0 = self.image_center
+        return np.stack([u0 + r * np.cos(phi), v0 + r * np.sin(phi)], axis=-1)
+
+    def with_table(self, table: FloatArray) -> PanoTable:
+        """The same model holding a given (N, M, 2) table (as read from a file)."""
+        if table.shape != (self.N, self.M, 2):
+            raise CalibrationError(
+                f"table has shape {table.shape}, expected ({self.N}, {self.M}, 2)"
+            )
+        obj = PanoTable(
+            self.coeffs,
+            self.image_center,
+            self.image_size,
+            self.rho_range,
+            self.M,
+            self.N,
+            self.azimuth_sign,
+            self.azimuth_offset,
+            self.cutoff_radius,
+        )
+        object.__setattr__(obj, "_table", np.asarray(table, np.float64))
+        return obj
+
+    def lookup(
+        self, theta: FloatArray, rho: FloatArray, *, method: Lookup = "bilinear"
+    ) -> tuple[FloatArray, BoolArray]:
+        """Pixels of scene directions (theta, rho) through the table.
+
+        method:
+            "nearest": the dissertation's lookup: integer floor of the entry
+                indices (eqs. 4.9, 4.12, 4.20, 4.23) and that entry's pixel.
+            "bilinear": bilinear interpolation between the four surrounding
+                entries (azimuth wraps around).
+            "analytic": f_r evaluated directly, no table (the limit of an
+                infinitely fine table).
+
+        Returns (..., 2) pixels and a validity mask (elevation inside the table
+        and radius outside the cut-off circle).
+        """
+        rs, re = self.rho_range
+        dr = (re - rs) / self.N
+        theta = np.asarray(theta, np.float64)
+        rho = np.asarray(rho, np.float64)
+        fi = np.mod(theta, TWO_PI) / (TWO_PI / self.M)
+        fj = (rho - rs) / dr
+        valid = (fj >= 0) & (fj < self.N) & np.isfinite(fj)
+        fj = np.where(valid, fj, 0.0)
+        if method == "nearest":
+            i = np.floor(fi).astype(np.intp) % self.M
+            j = np.clip(np.floor(fj).astype(np.intp), 0, self.N - 1)
+            uv = self.table[j, i]
+        elif method == "bilinear":
+            i0f = np.floor(fi)
+            a = (fi - i0f)[..., None]
+            i0 = i0f.astype(np.intp) % self.M
+            i1 = (i0 + 1) % self.M
+            j0 = np.clip(np.floor(fj).astype(np.intp), 0, self.N - 2)
+            b = (fj - j0)[..., None]
+            t = self.table
+            uv = (1 - b) * ((1 - a) * t[j0, i0] + a * t[j0, i1]) + b * (
+                (1 - a) * t[j0 + 1, i0] + a * t[j0 + 1, i1]
+            )
+        elif method == "analytic":
+            r = radial(self.coeffs, rho)
+            phi = self.azimuth_sign * theta + self.azimuth_offset
+            u0, v0 = self.image_center
+            uv = np.stack([u0 + r * np.cos(phi), v0 + r * np.sin(phi)], axis=-1)
+        else:
+            raise ValueError(f"unknown lookup {method!r}; choose one of {', '.join(LOOKUPS)}")
+        if self.cutoff_radius > 0:
+            d = uv - np.asarray(self.image_center)
+            valid &= np.hypot(d[..., 0], d[..., 1]) >= self.cutoff_radius
+        return uv, valid
+
+
+def default_rho_range(
+    coeffs: FloatArray,
+    rho_landmarks: FloatArray,
+    image_center: tuple[float, float],
+    image_size: tuple[int, int],
+    *,
+    margin: float = 0.1,
+) -> tuple[float, float]:
+    """Default elevation range of a table.
+
+    The landmarks' elevation span widened by ``margin`` of itself on each side,
+    then narrowed to where f_r stays monotonic, positive and within the
+    largest radius that fits in the image from the image center: a 4th-degree
+    polynomial is not trusted far outside the data that fixed it.
+    """
+    lo, hi = float(np.min(rho_landmarks)), float(np.max(rho_landmarks))
+    span = hi - lo
+    lo, hi = max(lo - margin * span, -math.pi / 2), min(hi + margin * span, math.pi / 2)
+    u0, v0 = image_center
+    w, h = image_size
+    r_lim = math.hypot(max(u0, w - 1 - u0), max(v0, h - 1 - v0))
+    grid = np.linspace(lo, hi, 2001)
+    r = radial(coeffs, grid)
+    dr = np.gradient(r, grid)
+    mid = int(np.argmin(np.abs(grid - 0.5 * (np.min(rho_landmarks) + np.max(rho_landmarks)))))
+    increasing = dr[mid] > 0
+    ok = (r >= 0) & (r <= r_lim) & ((dr > 0) if increasing else (dr < 0))
+    a = b = mid
+    while a > 0 and ok[a - 1]:
+        a -= 1
+    while b < grid.size - 1 and ok[b + 1]:
+        b += 1
+    if not ok[mid] or b - a < 2:
+        raise CalibrationError(
+            "the fitted radial function is not monotonic over the landmarks' elevations; "
+            "check the landmarks, the image center and the mirror center"
+        )
+    return float(grid[a]), float(grid[b])
+
+
+def default_table_size(coeffs: FloatArray, rho_range: tuple[float, float]) -> tuple[int, int]:
+    """Default (M, N): about one entry per pixel along the outer ring and along the radius.
+
+    M = 2 pi r_max rounded up to a multiple of 8 (at least 360);
+    N = |f_r(rho_e) - f_r(rho_s)| + 1 (at least 64).
+    """
+    grid = np.linspace(rho_range[0], rho_range[1], 512)
+    r = radial(coeffs, grid)
+    r_max = float(np.max(np.abs(r)))
+    M = max(360, math.ceil(TWO_PI * r_max / 8.0) * 8)
+    N = max(64, math.ceil(abs(float(r[-1] - r[0]))) + 1)
+    return M, N
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Everything Algorithm 1 produced, for reporting: the table and per-landmark residuals."""
+
+    table: PanoTable
+    fit: RadialFit
+    polar: LandmarkPolar
+    reprojection_px: FloatArray  # (n,) distance between each landmark's pixel and the model's
+
+
+def calibrate(
+    uv: FloatArray,
+    xyz_world: FloatArray,
+    mirror_center: FloatArray,
+    image_center: tuple[float, float],
+    image_size: tuple[int, int],
+    *,
+    azimuth: AzimuthModel = "fit",
+    rho_range: tuple[float, float] | None = None,
+    table_size: tuple[int, int] | None = None,
+    cutoff_radius: float = 0.0,
+) -> Calibration:
+    """Algorithms 1 and 2: landmarks in, pano-mapping table out.
+
+    Args:
+        uv: (n, 2) landmark pixels; xyz_world: (n, 3) their world points.
+        mirror_center: world position of O_m; image_center: (u0, v0) px.
+        image_size: (width, height) px.
+        azimuth: "identity" (the dissertation's phi = theta) or "fit" (s, phi0 from
+            the landmarks).
+        rho_range: (rho_s, rho_e) rad; default :func:`default_rho_range`.
+        table_size: (M, N); default :func:`default_table_size`.
+        cutoff_radius: px radius of the self-occluded center (0 = none).
+    """
+    uv = np.asarray(uv, np.float64)
+    xyz = np.asarray(xyz_world, np.float64)
+    if not (np.all(np.isfinite(uv)) and np.all(np.isfinite(xyz))):
+        row = int(np.flatnonzero(~(np.isfinite(uv).all(1) & np.isfinite(xyz).all(1)))[0])
+        raise CalibrationError(f"landmark {row} has a non-finite value")
+    polar = landmarks_to_polar(uv, xyz, np.asarray(mirror_center), np.asarray(image_center))
+    fit = fit_radial(polar.rho, polar.r)
+    if azimuth == "fit":
+        s, phi0, _ = fit_azimuth(polar.theta, polar.phi)
+    elif azimuth == "identity":
+        s, phi0 = 1, 0.0
+    else:
+        raise ValueError(f"unknown azimuth model {azimuth!r}")
+    rr = rho_range or default_rho_range(fit.coeffs, polar.rho, image_center, image_size)
+    M, N = table_size or default_table_size(fit.coeffs, rr)
+    table = PanoTable(fit.coeffs, image_center, image_size, rr, M, N, s, phi0, cutoff_radius)
+    pred, _ = table.lookup(polar.theta, polar.rho, method="analytic")
+    reproj = np.hypot(*(pred - uv).T)
+    return Calibration(table, fit, polar, reproj)
+
+
+def dissertation_plane_angles(
+    k: FloatArray, l: FloatArray, MQ: int, NQ: int, D: float, W: float, H: float
+) -> tuple[FloatArray, FloatArray]:
+    """Azimuth (from the line O_m P_r) and elevation of pixel (k, l) by eqs. 4.13-4.19, 4.21-4.22.
+
+    Kept to show that :class:`omnidev.views.PlaneView.from_dissertation` is the
+    same geometry. Eq. 4.18 reads ``h = l sin(beta)``; the figure and eq. 4.19
+    make clear that the horizontal distance ell is meant.
+    """
+    phi = np.arccos(1 - W**2 / (2 * D**2))  # eq. 4.14
+    beta = (np.pi - phi) / 2  # eq. 4.15
+    ell = np.asarray(k, np.float64) * W / MQ  # eq. 4.16
+    L = np.sqrt(D**2 + ell**2 - 2 * ell * D * np.cos(beta))  # eq. 4.17
+    theta = np.arcsin(ell * np.sin(beta) / L)  # eqs. 4.18-4.19
+    Hq = np.asarray(l, np.float64) * H / NQ  # eq. 4.21
+    rho = np.arctan(Hq / L)  # eq. 4.22
+    return theta, rho

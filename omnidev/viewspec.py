@@ -1,0 +1,105 @@
+"""Text form of views, for the command line: ``KIND:WxH[,key=value...]``.
+
+| kind          | keys (lengths in the calibration's unit, angles in degrees)                 |
+|---------------|------------------------------------------------------------------------------|
+| `panorama`    | elev=LO:HI (default: the camera's range), start=DEG, span=DEG, ccw=1         |
+| `cylinder`    | d=DIST, z=BOTTOM:TOP (required), start=DEG, span=DEG, ccw=1                  |
+| `plane`       | d=DIST, w=WIDTH, z=BOTTOM:TOP (required), az=DEG                            |
+| `perspective` | fov=DEG (default 90), pan=DEG, tilt=DEG, roll=DEG                            |
+| `top`         | x=EXTENT, y=EXTENT, z=HEIGHT (required), cx=X, cy=Y                          |
+
+>>> parse_view("panorama:1024x256,elev=-60:10").elevation_deg
+(-60.0, 10.0)
+>>> parse_view("perspective:640x480,fov=70,pan=90").pan_deg
+90.0
+"""
+
+from __future__ import annotations
+
+import math
+
+from omnidev.errors import OmnidevError
+from omnidev.views import CylinderPanorama, Panorama, Perspective, PlaneView, TopView, View
+
+_KEYS = {
+    "panorama": {"elev", "start", "span", "ccw"},
+    "cylinder": {"d", "z", "start", "span", "ccw"},
+    "plane": {"d", "w", "z", "az"},
+    "perspective": {"fov", "pan", "tilt", "roll"},
+    "top": {"x", "y", "z", "cx", "cy"},
+}
+_REQUIRED = {"cylinder": {"d", "z"}, "plane": {"d", "w", "z"}, "top": {"x", "y", "z"}}
+
+
+class ViewSpecError(OmnidevError):
+    """A view description that cannot be parsed."""
+
+
+def _num(spec: str, key: str, text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise ViewSpecError(f"view {spec!r}: {key}={text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ViewSpecError(f"view {spec!r}: {key} must be finite")
+    return v
+
+
+def _pair(spec: str, key: str, text: str) -> tuple[float, float]:
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise ViewSpecError(f"view {spec!r}: {key} must be LO:HI, got {text!r}")
+    return _num(spec, key, parts[0]), _num(spec, key, parts[1])
+
+
+def parse_view(spec: str) -> View:
+    """Parse a view description (see the module docstring)."""
+    kind, _, rest = spec.partition(":")
+    kind = kind.strip().lower()
+    if kind not in _KEYS:
+        raise ViewSpecError(f"view {spec!r}: unknown kind {kind!r}; kinds: {', '.join(_KEYS)}")
+    fields = [f.strip() for f in rest.split(",") if f.strip()]
+    if not fields:
+        raise ViewSpecError(f"view {spec!r}: give the size, e.g. {kind}:640x480")
+    try:
+        w, h = (int(x) for x in fields[0].lower().split("x"))
+    except ValueError:
+        raise ViewSpecError(f"view {spec!r}: size must look like 640x480") from None
+    if w < 1 or h < 1 or w > 32768 or h > 32768:
+        raise ViewSpecError(f"view {spec!r}: size must be 1..32768 pixels per side")
+    kv: dict[str, str] = {}
+    for f in fields[1:]:
+        key, eq, val = f.partition("=")
+        key = key.strip()
+        if not eq or key not in _KEYS[kind]:
+            raise ViewSpecError(
+                f"view {spec!r}: unknown setting {f!r}; {kind} takes "
+                f"{', '.join(sorted(_KEYS[kind]))}"
+            )
+        kv[key] = val.strip()
+    missing = _REQUIRED.get(kind, set()) - set(kv)
+    if missing:
+        raise ViewSpecError(f"view {spec!r}: {kind} needs {', '.join(sorted(missing))}")
+
+    def num(key: str, default: float) -> float:
+        return _num(spec, key, kv[key]) if key in kv else default
+
+    try:
+        if kind == "panorama":
+            elev = _pair(spec, "elev", kv["elev"]) if "elev" in kv else None
+            return Panorama(w, h, elev, num("start", 0.0), num("span", 360.0), num("ccw", 0) == 0)
+        if kind == "cylinder":
+            zb, zt = _pair(spec, "z", kv["z"])
+            return CylinderPanorama(
+                w, h, num("d", 0), zb, zt, num("start", 0.0), num("span", 360.0), num("ccw", 0) == 0
+            )
+        if kind == "plane":
+            zb, zt = _pair(spec, "z", kv["z"])
+            return PlaneView(w, h, num("d", 0), num("w", 0), zb, zt, num("az", 0.0))
+        if kind == "perspective":
+            return Perspective(
+                w, h, num("fov", 90.0), num("pan", 0.0), num("tilt", 0.0), num("roll", 0.0)
+            )
+        return TopView(w, h, num("x", 0), num("y", 0), num("z", 0), num("cx", 0.0), num("cy", 0.0))
+    except ValueError as exc:
+        raise ViewSpecError(f"view {spec!r}: {exc}") from None
