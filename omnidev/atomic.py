@@ -11,6 +11,12 @@ from pathlib import Path
 from omnidev.errors import OutputError
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def check_output(path: Path, *, force: bool) -> None:
     """Raise :class:`OutputError` if ``path`` exists (and not ``force``) or cannot be written."""
     if path.exists() and not force:
@@ -35,6 +41,7 @@ def atomic_path(path: Path, *, force: bool = False) -> Iterator[Path]:
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

@@ -80,6 +80,7 @@ class FrameWriter:
         if self.frames == 0:
             self.abort()
             raise OutputError(f"{self.path}: no frames to write")
+        os.chmod(self.tmp, 0o644)
         os.replace(self.tmp, self.path)
 
     def abort(self) -> None:

@@ -1,0 +1,111 @@
+"""Frame sources: one URI syntax for files, image sets and cameras.
+
+``SCHEME:REST[?key=value&key=value]``:
+
+| URI | source |
+|---|---|
+| ``video:PATH`` | a video file OpenCV reads |
+| ``images:GLOB`` | still images (a glob, a folder or one file), sorted by name |
+| ``v4l2:/dev/videoN?width=W&height=H&fps=F&fourcc=CCCC`` | a V4L2 capture device |
+| ``usb:VID:PID[:SERIAL]`` | the V4L2 node of a USB camera (hex vendor:product) |
+
+A bare path means ``images:`` when it is a folder, a glob or an image file, and
+``video:`` otherwise. Schemes are plugins (group ``omnidev.sources``): the
+entry point is a callable ``open(rest, options) -> Source``.
+"""
+
+from __future__ import annotations
+
+import glob as _glob
+from collections.abc import Iterator
+from pathlib import Path
+from types import TracebackType
+from typing import Protocol, runtime_checkable
+from urllib.parse import parse_qsl
+
+from omnidev import registry
+from omnidev.errors import PluginError, SourceError
+from omnidev.frame import Frame
+
+GROUP = "omnidev.sources"
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
+
+
+@runtime_checkable
+class Source(Protocol):
+    """An iterable of :class:`~omnidev.frame.Frame` that must be closed."""
+
+    name: str  # the URI it was opened from
+    frame_count: int | None  # total frames when known (files), else None
+    fps: float | None
+    live: bool  # a camera (no end, no total)
+
+    def __iter__(self) -> Iterator[Frame]: ...
+
+    def close(self) -> None: ...
+
+    def __enter__(self) -> Source: ...
+
+    def __exit__(
+        self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None: ...
+
+
+class SourceBase:
+    """Context-manager plumbing shared by the first-party sources."""
+
+    name: str = ""
+    frame_count: int | None = None
+    fps: float | None = None
+    live: bool = False
+
+    def close(self) -> None:
+        """Release the device or file."""
+
+    def __enter__(self) -> SourceBase:
+        return self
+
+    def __exit__(
+        self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+
+def split_uri(uri: str) -> tuple[str, str, dict[str, str]]:
+    """(scheme, rest, options) of a URI; a bare path gets its scheme from what it is.
+
+    >>> split_uri("v4l2:/dev/video0?width=640&fps=30")
+    ('v4l2', '/dev/video0', {'width': '640', 'fps': '30'})
+    """
+    scheme, sep, rest = uri.partition(":")
+    if not sep or "/" in scheme or "." in scheme or len(scheme) < 2:
+        return _bare(uri), uri, {}
+    rest, _, query = rest.partition("?")
+    options = dict(parse_qsl(query, keep_blank_values=True)) if query else {}
+    return scheme.lower(), rest, options
+
+
+def _bare(path: str) -> str:
+    p = Path(path)
+    if p.is_dir() or _glob.has_magic(path) or p.suffix.lower() in IMAGE_SUFFIXES:
+        return "images"
+    return "video"
+
+
+def check_options(uri: str, options: dict[str, str], allowed: set[str]) -> None:
+    """Raise :class:`SourceError` for an option the source does not know."""
+    for key in options:
+        if key not in allowed:
+            known = ", ".join(sorted(allowed)) or "none"
+            raise SourceError(f"{uri}: unknown option {key!r} (options: {known})")
+
+
+def open_source(uri: str) -> Source:
+    """Open a source by URI or bare path (see the module docstring)."""
+    scheme, rest, options = split_uri(uri)
+    try:
+        opener = registry.get(GROUP, scheme)
+    except PluginError as exc:
+        raise SourceError(f"{uri}: {exc}") from None
+    source: Source = opener(rest, options)
+    return source
