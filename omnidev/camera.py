@@ -37,8 +37,15 @@ _CV_INTERP = {"linear": cv2.INTER_LINEAR, "nearest": cv2.INTER_NEAREST, "cubic":
 class CameraModel(Protocol):
     """A calibrated camera that can say where scene points land in its image."""
 
-    kind: str
-    image_size: tuple[int, int]  # (width, height) in pixels
+    @property
+    def kind(self) -> str:
+        """The calibration kind (the unwarper plugin's entry-point name)."""
+        ...
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """(width, height) of the camera's images, px."""
+        ...
 
     def default_elevation_deg(self) -> tuple[float, float] | None:
         """Elevation band (bottom, top) a :class:`~omnidev.views.Panorama` uses by default."""

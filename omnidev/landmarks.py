@@ -17,7 +17,7 @@ COLUMNS = ("u", "v", "X", "Y", "Z")
 
 @dataclass(frozen=True)
 class Landmarks:
-    """Landmark pairs: (n, 2) pixels ``uv``, (n, 3) world points ``xyz``, CSV line numbers ``rows``."""
+    """Landmark pairs: (n, 2) pixels ``uv``, (n, 3) world points ``xyz``, CSV ``rows``."""
 
     uv: NDArray[np.float64]
     xyz: NDArray[np.float64]

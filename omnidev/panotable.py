@@ -291,12 +291,15 @@ def default_rho_range(
     image_size: tuple[int, int],
     *,
     margin: float = 0.1,
+    r_min: float = 0.0,
+    r_max: float | None = None,
 ) -> tuple[float, float]:
     """Default elevation range of a table.
 
     The landmarks' elevation span widened by ``margin`` of itself on each side,
-    then narrowed to where f_r stays monotonic, positive and within the
-    largest radius that fits in the image from the image center: a 4th-degree
+    then narrowed to where f_r stays monotonic and within [r_min, r_max] px
+    (default: 0 and the largest radius that fits in the image from the image
+    center; the mirror disc's radius when it is known): a 4th-degree
     polynomial is not trusted far outside the data that fixed it.
     """
     lo, hi = float(np.min(rho_landmarks)), float(np.max(rho_landmarks))
@@ -304,13 +307,13 @@ def default_rho_range(
     lo, hi = max(lo - margin * span, -math.pi / 2), min(hi + margin * span, math.pi / 2)
     u0, v0 = image_center
     w, h = image_size
-    r_lim = math.hypot(max(u0, w - 1 - u0), max(v0, h - 1 - v0))
+    r_lim = math.hypot(max(u0, w - 1 - u0), max(v0, h - 1 - v0)) if r_max is None else r_max
     grid = np.linspace(lo, hi, 2001)
     r = radial(coeffs, grid)
     dr = np.gradient(r, grid)
     mid = int(np.argmin(np.abs(grid - 0.5 * (np.min(rho_landmarks) + np.max(rho_landmarks)))))
     increasing = dr[mid] > 0
-    ok = (r >= 0) & (r <= r_lim) & ((dr > 0) if increasing else (dr < 0))
+    ok = (r >= r_min) & (r <= r_lim) & ((dr > 0) if increasing else (dr < 0))
     a = b = mid
     while a > 0 and ok[a - 1]:
         a -= 1
@@ -359,6 +362,7 @@ def calibrate(
     rho_range: tuple[float, float] | None = None,
     table_size: tuple[int, int] | None = None,
     cutoff_radius: float = 0.0,
+    disc_radius: float | None = None,
 ) -> Calibration:
     """Algorithms 1 and 2: landmarks in, pano-mapping table out.
 
@@ -371,6 +375,8 @@ def calibrate(
         rho_range: (rho_s, rho_e) rad; default :func:`default_rho_range`.
         table_size: (M, N); default :func:`default_table_size`.
         cutoff_radius: px radius of the self-occluded center (0 = none).
+        disc_radius: px radius of the mirror disc when known; the default
+            elevation range then stops there.
     """
     uv = np.asarray(uv, np.float64)
     xyz = np.asarray(xyz_world, np.float64)
@@ -385,7 +391,9 @@ def calibrate(
         s, phi0 = 1, 0.0
     else:
         raise ValueError(f"unknown azimuth model {azimuth!r}")
-    rr = rho_range or default_rho_range(fit.coeffs, polar.rho, image_center, image_size)
+    rr = rho_range or default_rho_range(
+        fit.coeffs, polar.rho, image_center, image_size, r_min=cutoff_radius, r_max=disc_radius
+    )
     M, N = table_size or default_table_size(fit.coeffs, rr)
     table = PanoTable(fit.coeffs, image_center, image_size, rr, M, N, s, phi0, cutoff_radius)
     pred, _ = table.lookup(polar.theta, polar.rho, method="analytic")

@@ -1,9 +1,9 @@
 """Rig files (TOML): a camera bound to its calibration.
 
-    [camera]
-    name = "hall"                 # optional
-    source = "v4l2:/dev/video0"   # or: usb = "046d:0825[:SERIAL]"
-    calibration = "hall.yml.gz"   # relative to the rig file's folder
+[camera]
+name = "hall"                 # optional
+source = "v4l2:/dev/video0"   # or: usb = "046d:0825[:SERIAL]"
+calibration = "hall.yml.gz"   # relative to the rig file's folder
 """
 
 from __future__ import annotations

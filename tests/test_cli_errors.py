@@ -40,8 +40,19 @@ def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def calibrate_args(csv: Path, out: Path) -> list[str]:
-    return ["calibrate", "pano-table", str(csv), "--mirror-center", "0,0,1",
-            "--image-center", "320,320", "--image-size", "640x640", "-o", str(out)]
+    return [
+        "calibrate",
+        "pano-table",
+        str(csv),
+        "--mirror-center",
+        "0,0,1",
+        "--image-center",
+        "320,320",
+        "--image-size",
+        "640x640",
+        "-o",
+        str(out),
+    ]
 
 
 def test_calibrate_writes_table_and_plot(tmp_path, capsys):
@@ -111,12 +122,28 @@ def test_unwarp_rejects_other_kinds_and_versions(tmp_path):
         fs.write("kind", kind)
         fs.write("format_version", version)
         fs.release()
-        res = run_cli("unwarp", str(img), "--camera", str(p), "--view", "panorama:64x16",
-                      "-o", str(tmp_path / "o.png"))
+        res = run_cli(
+            "unwarp",
+            str(img),
+            "--camera",
+            str(p),
+            "--view",
+            "panorama:64x16",
+            "-o",
+            str(tmp_path / "o.png"),
+        )
         assert res.returncode == 2, res.stderr
         assert expect in res.stderr and "Traceback" not in res.stderr
-    res = run_cli("unwarp", str(img), "--camera", str(tmp_path / "other.yml"), "--view",
-                  "panorama:64x16", "-o", str(tmp_path / "o.png"))
+    res = run_cli(
+        "unwarp",
+        str(img),
+        "--camera",
+        str(tmp_path / "other.yml"),
+        "--view",
+        "panorama:64x16",
+        "-o",
+        str(tmp_path / "o.png"),
+    )
     assert "installed: " in res.stderr and "pano-table" in res.stderr
 
 
@@ -129,21 +156,65 @@ def test_unwarp_bad_view_and_output_pairs(tmp_path):
 
     img = tmp_path / "omni.png"
     cv2.imwrite(str(img), np.full((640, 640, 3), 128, np.uint8))
-    res = run_cli("unwarp", str(img), "--camera", str(cam), "--view", "blob:10x10",
-                  "-o", str(tmp_path / "o.png"))
+    res = run_cli(
+        "unwarp",
+        str(img),
+        "--camera",
+        str(cam),
+        "--view",
+        "blob:10x10",
+        "-o",
+        str(tmp_path / "o.png"),
+    )
     assert res.returncode == 2 and "unknown kind 'blob'" in res.stderr
-    res = run_cli("unwarp", str(img), "--camera", str(cam), "--view", "panorama:64x16",
-                  "--view", "panorama:32x8", "-o", str(tmp_path / "o.png"))
+    res = run_cli(
+        "unwarp",
+        str(img),
+        "--camera",
+        str(cam),
+        "--view",
+        "panorama:64x16",
+        "--view",
+        "panorama:32x8",
+        "-o",
+        str(tmp_path / "o.png"),
+    )
     assert res.returncode == 2 and "one output per view" in res.stderr
-    res = run_cli("unwarp", str(img), "--camera", str(cam), "--view", "panorama:64x16",
-                  "-o", str(tmp_path / "o.xyz"))
+    res = run_cli(
+        "unwarp",
+        str(img),
+        "--camera",
+        str(cam),
+        "--view",
+        "panorama:64x16",
+        "-o",
+        str(tmp_path / "o.xyz"),
+    )
     assert res.returncode == 2 and "unknown output type .xyz" in res.stderr
-    res = run_cli("unwarp", str(img), "--camera", str(cam), "--camera-option", "lookup=cubic",
-                  "--view", "panorama:64x16", "-o", str(tmp_path / "o.png"))
+    res = run_cli(
+        "unwarp",
+        str(img),
+        "--camera",
+        str(cam),
+        "--camera-option",
+        "lookup=cubic",
+        "--view",
+        "panorama:64x16",
+        "-o",
+        str(tmp_path / "o.png"),
+    )
     assert res.returncode == 2 and "lookup='cubic'" in res.stderr
     small = tmp_path / "small.png"
     cv2.imwrite(str(small), np.zeros((100, 100, 3), np.uint8))
-    res = run_cli("unwarp", str(small), "--camera", str(cam), "--view", "panorama:64x16",
-                  "-o", str(tmp_path / "o.png"))
+    res = run_cli(
+        "unwarp",
+        str(small),
+        "--camera",
+        str(cam),
+        "--view",
+        "panorama:64x16",
+        "-o",
+        str(tmp_path / "o.png"),
+    )
     assert res.returncode == 2 and "is 100x100; the calibration is for 640x640" in res.stderr
     assert not (tmp_path / "o.png").exists()

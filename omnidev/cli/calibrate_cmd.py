@@ -95,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         raise CalibrationError("give --image or --image-size")
     cutoff = args.cutoff_radius or 0.0
+    disc = None
     if args.image_center is None or args.image_center == "detect":
         if image is None:
             raise CalibrationError("--image-center detect needs --image")
@@ -102,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
         center = circles.center
         if args.cutoff_radius is None:
             cutoff = circles.cutoff_radius
+        disc = circles.disc_radius
         print(
             f"detected image center ({center[0]:.2f}, {center[1]:.2f}) px, "
             f"cut-off radius {circles.cutoff_radius:.1f} px, "
@@ -121,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
         mirror,
         center,
         size,
+        disc_radius=disc,
         azimuth=args.azimuth,
         rho_range=rho_range,
         table_size=table_size,

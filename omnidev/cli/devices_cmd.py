@@ -18,14 +18,17 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     devices = list_video_devices(args.sysfs, args.dev)
     if not devices:
-        print("no V4L2 capture devices found (no /dev/video* nodes; is the camera plugged in "
-              "and its driver loaded?)")
+        print(
+            "no V4L2 capture devices found (no /dev/video* nodes; is the camera plugged in "
+            "and its driver loaded?)"
+        )
         return 0
     print(f"{'node':<14} {'capture':<8} {'usb id':<28} card")
     for d in devices:
         note = "" if d.readable else "  (not readable: add the user to group 'video')"
         if not d.node_exists:
             note = "  (no /dev node)"
-        print(f"{d.node:<14} {'yes' if d.capture else 'no':<8} {d.usb_id or '-':<28} "
-              f"{d.card}{note}")
+        print(
+            f"{d.node:<14} {'yes' if d.capture else 'no':<8} {d.usb_id or '-':<28} {d.card}{note}"
+        )
     return 0

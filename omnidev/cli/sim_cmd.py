@@ -24,7 +24,14 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from omnidev.sim.fixtures import make_omni_fixture
 
-    make_omni_fixture(args.outdir, size=args.size, frames=args.frames, fps=args.fps,
-                      seed=args.seed, camera=args.camera, force=args.force)
+    make_omni_fixture(
+        args.outdir,
+        size=args.size,
+        frames=args.frames,
+        fps=args.fps,
+        seed=args.seed,
+        camera=args.camera,
+        force=args.force,
+    )
     print(f"wrote {args.outdir}/")
     return 0

@@ -18,7 +18,7 @@ from omnidev.sim.landmarks import make_landmarks, write_landmarks_csv
 from omnidev.sim.mirrors import SvpHyperbolicCamera
 from omnidev.sim.render import render_omni, render_view
 from omnidev.sim.scene import RoomScene
-from omnidev.views import Panorama, PlaneView
+from omnidev.views import Panorama, PlaneView, View
 
 PANORAMA = Panorama(1024, 256)
 PERSPECTIVE = PlaneView(320, 240, distance=1.8, plane_width=2.4, z_bottom=-1.2, z_top=0.6)
@@ -55,8 +55,9 @@ def make_omni_fixture(
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     try:
-        video = cv2.VideoWriter(str(tmp / "omni.avi"), cv2.VideoWriter.fourcc(*"MJPG"), fps,
-                                (size, size))
+        video = cv2.VideoWriter(
+            str(tmp / "omni.avi"), cv2.VideoWriter.fourcc(*"MJPG"), fps, (size, size)
+        )
         video.set(cv2.VIDEOWRITER_PROP_QUALITY, 90)
         for i in tqdm(range(frames), desc="rendering", unit="frame", file=sys.stderr):
             img = render_omni(cam, scene, t=i / fps, noise_sigma=1.0, seed=seed + i)
@@ -65,7 +66,8 @@ def make_omni_fixture(
             video.write(img)
         video.release()
         write_landmarks_csv(tmp / "landmarks.csv", make_landmarks(cam, scene, n=16, seed=seed))
-        for name, view in [("panorama", PANORAMA), ("perspective", PERSPECTIVE)]:
+        views: list[tuple[str, View]] = [("panorama", PANORAMA), ("perspective", PERSPECTIVE)]
+        for name, view in views:
             img, _ = render_view(view, scene, camera=cam)
             cv2.imwrite(str(tmp / f"truth_{name}.png"), img)
         truth = {
@@ -79,8 +81,11 @@ def make_omni_fixture(
             "noise_sigma": 1.0,
             "frame_time": "t = index / fps seconds (the blue disc on the +x wall moves)",
             "views": {
-                "panorama": {"type": "Panorama", **dataclasses.asdict(PANORAMA),
-                             "elevation_deg": list(cam.default_elevation_deg())},
+                "panorama": {
+                    "type": "Panorama",
+                    **dataclasses.asdict(PANORAMA),
+                    "elevation_deg": list(cam.default_elevation_deg()),
+                },
                 "perspective": {"type": "PlaneView", **dataclasses.asdict(PERSPECTIVE)},
             },
             "regenerate": f"omnidev sim omni {outdir} --size {size} --frames {frames} "
@@ -94,5 +99,3 @@ def make_omni_fixture(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return truth
-
-

@@ -39,7 +39,9 @@ def make_landmarks(
     uv, ok = camera.project(pts, finite=True)
     assert ok.all(), "landmarks must be visible"
     world = pts + np.asarray(scene.mirror_center_world)
-    return [Landmark(float(a), float(b), *map(float, p)) for (a, b), p in zip(uv, world, strict=True)]
+    return [
+        Landmark(float(a), float(b), *map(float, p)) for (a, b), p in zip(uv, world, strict=True)
+    ]
 
 
 def write_landmarks_csv(path: Path, landmarks: list[Landmark], *, force: bool = False) -> None:

@@ -81,8 +81,9 @@ class SvpHyperbolicCamera:
     def elevation_of_radius(self, r: FloatArray) -> FloatArray:
         """Inverse of :meth:`radius_of_elevation`, rad."""
         d = self.back_project(
-            np.stack([self.center[0] + np.asarray(r, np.float64), np.full_like(r, self.center[1])],
-                     -1)
+            np.stack(
+                [self.center[0] + np.asarray(r, np.float64), np.full_like(r, self.center[1])], -1
+            )
         )
         return np.asarray(np.arcsin(np.clip(d[..., 2], -1, 1)), np.float64)
 

@@ -22,7 +22,8 @@ class Scene(Protocol):
 
 
 class BackProjecting(CameraModel, Protocol):
-    center: tuple[float, float]
+    @property
+    def center(self) -> tuple[float, float]: ...
 
     def back_project(self, uv: FloatArray) -> FloatArray: ...
 
@@ -88,8 +89,11 @@ def render_view(
     The mask is where ``camera`` (if given) sees the pixel's point; all True
     otherwise.
     """
-    big = dataclasses.replace(view, width=view.width * supersample,  # type: ignore[type-var]
-                              height=view.height * supersample)
+    big = dataclasses.replace(
+        view,
+        width=view.width * supersample,  # type: ignore[type-var]
+        height=view.height * supersample,
+    )
     pts = big.points(camera.default_elevation_deg() if camera else None)
     dirs = pts.reshape(-1, 3)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)

@@ -23,12 +23,17 @@ def smoothstep(edge0: float | FloatArray, edge1: float | FloatArray, x: FloatArr
     return np.asarray(t * t * (3 - 2 * t), np.float64)
 
 
-def soft_rect(s: FloatArray, t: FloatArray, s0: float, s1: float, t0: float, t1: float,
-              blur: float) -> FloatArray:
+def soft_rect(
+    s: FloatArray, t: FloatArray, s0: float, s1: float, t0: float, t1: float, blur: float
+) -> FloatArray:
     """1 inside [s0, s1] x [t0, t1], 0 outside, with edges blurred over ``blur`` metres."""
     h = blur / 2
-    return (smoothstep(s0 - h, s0 + h, s) * (1 - smoothstep(s1 - h, s1 + h, s))
-            * smoothstep(t0 - h, t0 + h, t) * (1 - smoothstep(t1 - h, t1 + h, t)))
+    return (
+        smoothstep(s0 - h, s0 + h, s)
+        * (1 - smoothstep(s1 - h, s1 + h, s))
+        * smoothstep(t0 - h, t0 + h, t)
+        * (1 - smoothstep(t1 - h, t1 + h, t))
+    )
 
 
 @dataclass(frozen=True)
@@ -40,15 +45,27 @@ class _Face:
     rects: list[tuple[float, float, float, float, FloatArray]]
 
 
-def _random_face(rng: np.random.Generator, extent: tuple[float, float, float, float],
-                 n_rects: int, min_wavelength: float) -> _Face:
+def _random_face(
+    rng: np.random.Generator,
+    extent: tuple[float, float, float, float],
+    n_rects: int,
+    min_wavelength: float,
+) -> _Face:
     base = rng.uniform(70, 190, 3)
     k = 9
     wl = rng.uniform(min_wavelength, 1.5, k)
     ang = rng.uniform(0, np.pi, k)
     kk = 2 * np.pi / wl
-    waves = np.stack([kk * np.cos(ang), kk * np.sin(ang), rng.uniform(0, 2 * np.pi, k),
-                      rng.uniform(5, 14, k), rng.integers(0, 3, k).astype(float)], 1)
+    waves = np.stack(
+        [
+            kk * np.cos(ang),
+            kk * np.sin(ang),
+            rng.uniform(0, 2 * np.pi, k),
+            rng.uniform(5, 14, k),
+            rng.integers(0, 3, k).astype(float),
+        ],
+        1,
+    )
     s_lo, s_hi, t_lo, t_hi = extent
     rects = []
     for _ in range(n_rects):
@@ -82,13 +99,23 @@ class RoomScene:
         rng = np.random.default_rng(self.seed)
         (x0, x1), (y0, y1) = self.x_range, self.y_range
         zf, zc = -self.floor_depth, self.ceiling_height
-        extents = [(y0, y1, zf, zc), (y0, y1, zf, zc), (x0, x1, zf, zc), (x0, x1, zf, zc),
-                   (x0, x1, y0, y1), (x0, x1, y0, y1)]
-        faces = [_random_face(rng, e, 3 if i < 4 else 2, self.min_wavelength)
-                 for i, e in enumerate(extents)]
+        extents = [
+            (y0, y1, zf, zc),
+            (y0, y1, zf, zc),
+            (x0, x1, zf, zc),
+            (x0, x1, zf, zc),
+            (x0, x1, y0, y1),
+            (x0, x1, y0, y1),
+        ]
+        faces = [
+            _random_face(rng, e, 3 if i < 4 else 2, self.min_wavelength)
+            for i, e in enumerate(extents)
+        ]
         self._faces.extend(faces)
 
-    def intersect(self, origins: FloatArray, dirs: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
+    def intersect(
+        self, origins: FloatArray, dirs: FloatArray
+    ) -> tuple[FloatArray, NDArray[np.intp]]:
         """Distance to the first face hit from inside the box, and that face's index."""
         (x0, x1), (y0, y1) = self.x_range, self.y_range
         lo = np.array([x0, y0, -self.floor_depth])
@@ -100,8 +127,11 @@ class RoomScene:
         axis = np.argmin(t_axis, axis=1)
         t = t_axis[np.arange(len(t_axis)), axis]
         positive = dirs[np.arange(len(dirs)), axis] > 0
-        face = np.where(axis == 0, np.where(positive, 1, 0),
-                        np.where(axis == 1, np.where(positive, 3, 2), np.where(positive, 5, 4)))
+        face = np.where(
+            axis == 0,
+            np.where(positive, 1, 0),
+            np.where(axis == 1, np.where(positive, 3, 2), np.where(positive, 5, 4)),
+        )
         return t, face.astype(np.intp)
 
     def _face_coords(self, p: FloatArray, face: NDArray[np.intp]) -> tuple[FloatArray, FloatArray]:
@@ -126,8 +156,9 @@ class RoomScene:
             out[sel] -= 70 * self._floor_lines(s[sel], tt[sel])[:, None]
         sel = face < 4  # a dark skirting board along the walls' foot
         if np.any(sel):
-            m = 1 - smoothstep(-self.floor_depth + 0.12, -self.floor_depth + 0.12 + self.edge_blur,
-                               tt[sel])
+            m = 1 - smoothstep(
+                -self.floor_depth + 0.12, -self.floor_depth + 0.12 + self.edge_blur, tt[sel]
+            )
             out[sel] = out[sel] * (1 - m[:, None]) + 50 * m[:, None]
         # a moving disc on the x1 wall (the video's change over time)
         sel = face == 1

@@ -1,4 +1,4 @@
-"""``usb:VID:PID[:SERIAL]`` — the capture node of a USB camera, found through sysfs, opened as V4L2."""
+"""``usb:VID:PID[:SERIAL]`` — a USB camera's capture node, found through sysfs, opened as V4L2."""
 
 from __future__ import annotations
 

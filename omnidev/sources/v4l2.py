@@ -52,7 +52,7 @@ def parse_v4l2_options(uri: str, options: dict[str, str]) -> dict[str, int | flo
 
 
 class V4L2Source(SourceBase):
-    """A live V4L2 camera; a read that fails raises :class:`SourceError` with the last good frame."""
+    """A live V4L2 camera; a failed read raises :class:`SourceError` naming the last good frame."""
 
     live = True
 
@@ -71,15 +71,20 @@ class V4L2Source(SourceBase):
             raise SourceError(f"{self.name}: OpenCV's V4L2 backend cannot open it")
         if "fourcc" in settings:
             self._cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter.fourcc(*str(settings["fourcc"])))
-        props = {"width": cv2.CAP_PROP_FRAME_WIDTH, "height": cv2.CAP_PROP_FRAME_HEIGHT,
-                 "fps": cv2.CAP_PROP_FPS}
+        props = {
+            "width": cv2.CAP_PROP_FRAME_WIDTH,
+            "height": cv2.CAP_PROP_FRAME_HEIGHT,
+            "fps": cv2.CAP_PROP_FPS,
+        }
         for key, prop in props.items():
             if key in settings:
                 self._cap.set(prop, float(settings[key]))
                 got = self._cap.get(prop)
                 if abs(got - float(settings[key])) > 1e-3:
-                    print(f"{self.name}: asked for {key}={settings[key]}, the driver gave {got:g}",
-                          file=sys.stderr)
+                    print(
+                        f"{self.name}: asked for {key}={settings[key]}, the driver gave {got:g}",
+                        file=sys.stderr,
+                    )
         fps = float(self._cap.get(cv2.CAP_PROP_FPS))
         self.fps = fps if fps > 0 else None
 

@@ -15,7 +15,7 @@ from omnidev.sources import SourceBase, check_options
 
 
 class VideoSource(SourceBase):
-    """A video file. Stops with a :class:`SourceError` when frames end before the announced count."""
+    """A video file; a :class:`SourceError` when frames end before the announced count."""
 
     def __init__(self, path: str) -> None:
         self.path = Path(path)
@@ -44,8 +44,8 @@ class VideoSource(SourceBase):
         if self.frame_count is not None and index < self.frame_count:
             last = f"last good frame {index - 1}" if index else "no frame decoded"
             raise SourceError(
-                f"{self.name}: stopped after {index} of {self.frame_count} frames "
-                f"(truncated or corrupt file; {last})"
+                f"{self.name}: frame {index} is corrupt or missing (truncated file?): "
+                f"read {index} of {self.frame_count} frames, {last}"
             )
 
     def close(self) -> None:
