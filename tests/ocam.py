@@ -43,14 +43,19 @@ def load_corners(path: Path, method: str = "ocamcalib_subpixel") -> OcamCorners:
         view.append(np.full(XY1.shape[1], i))
         images.append(v["image"])
     return OcamCorners(
-        np.concatenate(uv), np.concatenate(xyz), np.concatenate(view), images, model,
+        np.concatenate(uv),
+        np.concatenate(xyz),
+        np.concatenate(view),
+        images,
+        model,
         (model["yc_col_1based"] - 1, model["xc_row_1based"] - 1),
-        (model["width"], model["height"]), float(model["rms_stored"]),
+        (model["width"], model["height"]),
+        float(model["rms_stored"]),
     )
 
 
 def ocam_project(model: dict, xyz: np.ndarray) -> np.ndarray:
-    """OCamCalib's world2cam by its forward polynomial (root of ss(rho)/rho = z/n): 0-based (u, v)."""
+    """OCamCalib's world2cam via its forward polynomial ss(rho)/rho = z/n: 0-based (u, v)."""
     ss = np.array(model["ss"], np.float64)
     out = np.empty((len(xyz), 2))
     for k, (x, y, z) in enumerate(xyz):

@@ -45,11 +45,14 @@ def test_pano_table_from_ocamcalib_corners(realdata, name):
     pred, ok = PanoTableCamera(half.table, "analytic").project(c.xyz[~train], finite=True)
     # held-out corners outside the half-set's elevation range are not extrapolated
     held = rms(np.hypot(*(pred - c.uv[~train])[ok].T))
-    print(f"\n{name}: {len(c.uv)} corners in {len(c.images)} views; OCamCalib published RMS "
-          f"{c.published_rms_px:.3f} px; pano-table radial RMS {cal.fit.rms_px:.3f} px, "
-          f"reprojection RMS {reproj:.3f} px (max {cal.reprojection_px.max():.3f}), "
-          f"held-out RMS {held:.3f} px ({ok.mean():.0%} in range); azimuth s={cal.table.azimuth_sign:+d} "
-          f"phi0={math.degrees(cal.table.azimuth_offset):.2f} deg")
+    print(
+        f"\n{name}: {len(c.uv)} corners in {len(c.images)} views; OCamCalib published RMS "
+        f"{c.published_rms_px:.3f} px; pano-table radial RMS {cal.fit.rms_px:.3f} px, "
+        f"reprojection RMS {reproj:.3f} px (max {cal.reprojection_px.max():.3f}), "
+        f"held-out RMS {held:.3f} px ({ok.mean():.0%} in range); "
+        f"azimuth s={cal.table.azimuth_sign:+d} "
+        f"phi0={math.degrees(cal.table.azimuth_offset):.2f} deg"
+    )
     assert ok.mean() > 0.9
     assert reproj < SETS[name] and held < SETS[name] * 1.15
     # OCamCalib's frame has x along rows, y along columns: the opposite handedness to (u, v)
@@ -79,7 +82,9 @@ def test_real_panorama_puts_the_chessboard_corners_on_corners(realdata, name):
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 0.01)
     found = cv2.cornerSubPix(gray, pts.copy(), (4, 4), (-1, -1), crit)
     shift = np.hypot(*(found - pts).reshape(-1, 2).T)
-    print(f"\n{name} {c.images[0]}: corner shift in the panorama median {np.median(shift):.2f} "
-          f"px, 90th percentile {np.percentile(shift, 90):.2f} px")
+    print(
+        f"\n{name} {c.images[0]}: corner shift in the panorama median {np.median(shift):.2f} "
+        f"px, 90th percentile {np.percentile(shift, 90):.2f} px"
+    )
     # measured: median 0.84 / 0.77 px, 90th percentile 1.77 / 1.67 px (panorama pixels)
     assert np.median(shift) < 1.2 and np.percentile(shift, 90) < 2.5
