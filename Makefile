@@ -29,7 +29,7 @@ demo: setup
 	    -o $(OUT)/camera.yml.gz --plot $(OUT)/radial_fit.png --force
 	$(BIN)/omnidev unwarp $(FIXTURE)/omni.avi --camera $(OUT)/camera.yml.gz \
 	    --view panorama:1280x320 -o $(OUT)/panorama.mp4 \
-	    --view plane:640x480,d=1.8,w=2.4,z=-1.2:0.6,az=0 -o $(OUT)/perspective.mp4 --force
+	    --view plane:640x480,d=1.8,w=2.4,z=-1.2:0.3,az=0 -o $(OUT)/perspective.mp4 --force
 	@echo
 	@echo "demo outputs in $(OUT)/:"
 	@ls -l $(OUT)

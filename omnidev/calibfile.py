@@ -79,7 +79,7 @@ def read_kind(path: Path) -> str:
 
 
 def check_header(fs: cv2.FileStorage, path: Path, kind: str, version: int) -> None:
-    """Raise unless the file is of ``kind`` and at most format ``version``."""
+    """Raise unless the file is of ``kind`` and exactly format ``version``."""
     got = read_string(fs, path, "kind")
     if got != kind:
         raise CalibrationError(f"{path}: a calibration of kind {got!r}, not {kind!r}")

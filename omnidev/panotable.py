@@ -241,7 +241,8 @@ class PanoTable:
             "nearest": the dissertation's lookup: integer floor of the entry
                 indices (eqs. 4.9, 4.12, 4.20, 4.23) and that entry's pixel.
             "bilinear": bilinear interpolation between the four surrounding
-                entries (azimuth wraps around).
+                entries (azimuth wraps around; above the last entry row,
+                rho_e - step .. rho_e, the last two rows extrapolate linearly).
             "analytic": f_r evaluated directly, no table (the limit of an
                 infinitely fine table).
 
@@ -298,8 +299,8 @@ def default_rho_range(
 
     The landmarks' elevation span widened by ``margin`` of itself on each side,
     then narrowed to where f_r stays monotonic and within [r_min, r_max] px
-    (default: 0 and the largest radius that fits in the image from the image
-    center; the mirror disc's radius when it is known): a 4th-degree
+    (default: 0 and the distance from the image center to the farthest image
+    corner; the mirror disc's radius when it is known): a 4th-degree
     polynomial is not trusted far outside the data that fixed it.
     """
     lo, hi = float(np.min(rho_landmarks)), float(np.max(rho_landmarks))

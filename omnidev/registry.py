@@ -9,8 +9,8 @@
 
 First-party plugins register exactly as a vendor's would. A plugin that fails
 to import is reported as broken (with its error) and the others keep working;
-two distributions registering one name in one group is a :class:`PluginError`
-naming both.
+when two distributions register one name in one group, both are listed as
+broken and :func:`get` of that name raises a :class:`PluginError` naming both.
 """
 
 from __future__ import annotations
@@ -61,19 +61,28 @@ def _load(ep: metadata.EntryPoint) -> tuple[Any, str | None]:
 
 @cache
 def _group(group: str) -> tuple[dict[str, PluginInfo], dict[str, Any]]:
+    entries = _entry_points(group)
+    dists: dict[str, list[str]] = {}
+    for ep, dist, _ in entries:
+        dists.setdefault(ep.name, []).append(dist)
     infos: dict[str, PluginInfo] = {}
     objects: dict[str, Any] = {}
-    for ep, dist, version in _entry_points(group):
-        if ep.name in infos:
-            other = infos[ep.name].distribution
-            raise PluginError(
-                f"plugin name {ep.name!r} in group {group} is registered by two distributions: "
-                f"{other} and {dist}; uninstall one of them"
+    for ep, dist, version in entries:
+        key = ep.name
+        if len(dists[ep.name]) > 1:
+            # Neither wins: both are listed as broken, and using the name fails.
+            key = f"{ep.name} [{dist}]"
+            both = " and ".join(dists[ep.name])
+            clash = (
+                f"plugin name {ep.name!r} in group {group} is registered by two "
+                f"distributions: {both}; uninstall one of them"
             )
+            infos[key] = PluginInfo(group, ep.name, ep.value, dist, version, clash)
+            continue
         obj, err = _load(ep)
-        infos[ep.name] = PluginInfo(group, ep.name, ep.value, dist, version, err)
+        infos[key] = PluginInfo(group, ep.name, ep.value, dist, version, err)
         if err is None:
-            objects[ep.name] = obj
+            objects[key] = obj
     return infos, objects
 
 
@@ -86,7 +95,7 @@ def plugins(group: str) -> list[PluginInfo]:
     """Every plugin of a group, broken ones included, sorted by name."""
     if group not in GROUPS:
         raise PluginError(f"unknown plugin group {group!r}; groups are {', '.join(GROUPS)}")
-    return sorted(_group(group)[0].values(), key=lambda p: p.name)
+    return sorted(_group(group)[0].values(), key=lambda p: (p.name, p.distribution))
 
 
 def get(group: str, name: str) -> Any:
@@ -103,6 +112,9 @@ def get(group: str, name: str) -> Any:
         raise PluginError(
             f"plugin {name!r} ({info.distribution} {info.version}) is broken: {info.error}"
         )
+    clash = [i for i in infos.values() if i.name == name]
+    if clash:
+        raise PluginError(str(clash[0].error))
     ok = sorted(objects)
     installed = ", ".join(ok) if ok else "none"
     kind = {"omnidev.unwarpers": "camera kind", "omnidev.sources": "source scheme"}.get(

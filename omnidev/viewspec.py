@@ -84,14 +84,20 @@ def parse_view(spec: str) -> View:
     def num(key: str, default: float) -> float:
         return _num(spec, key, kv[key]) if key in kv else default
 
+    def clockwise() -> bool:
+        text = kv.get("ccw", "0").lower()
+        if text not in ("0", "1", "yes", "no", "true", "false"):
+            raise ViewSpecError(f"view {spec!r}: ccw must be 0 or 1, got {text!r}")
+        return text in ("0", "no", "false")
+
     try:
         if kind == "panorama":
             elev = _pair(spec, "elev", kv["elev"]) if "elev" in kv else None
-            return Panorama(w, h, elev, num("start", 0.0), num("span", 360.0), num("ccw", 0) == 0)
+            return Panorama(w, h, elev, num("start", 0.0), num("span", 360.0), clockwise())
         if kind == "cylinder":
             zb, zt = _pair(spec, "z", kv["z"])
             return CylinderPanorama(
-                w, h, num("d", 0), zb, zt, num("start", 0.0), num("span", 360.0), num("ccw", 0) == 0
+                w, h, num("d", 0), zb, zt, num("start", 0.0), num("span", 360.0), clockwise()
             )
         if kind == "plane":
             zb, zt = _pair(spec, "z", kv["z"])

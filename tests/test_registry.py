@@ -79,8 +79,13 @@ def test_duplicate_names_name_both_distributions(plugin_path):
         sys.path.insert(0, str(plugin_path / dist))
     try:
         registry.refresh()
+        listed = [p for p in registry.plugins("omnidev.trackers") if p.name == "same-name"]
+        assert [p.distribution for p in listed] == ["fake-one", "fake-two"]
+        assert all(p.broken and "fake-one and fake-two" in str(p.error) for p in listed)
         with pytest.raises(PluginError, match="same-name.*fake-one and fake-two"):
-            registry.plugins("omnidev.trackers")
+            registry.get("omnidev.trackers", "same-name")
+        # the rest of the group keeps working
+        assert registry.get("omnidev.unwarpers", "pano-table") is not None
     finally:
         for dist in ("fake-one", "fake-two"):
             sys.path.remove(str(plugin_path / dist))

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -43,14 +44,18 @@ P_RHO = math.atan2(P[2], math.hypot(P[0], P[1]))
 
 
 def arrow(
-    ax: Axes, a: tuple[float, float], b: tuple[float, float], color: str, **kw: object
+    ax: Axes,
+    a: tuple[float, float],
+    b: tuple[float, float],
+    color: str,
+    *,
+    lw: float = 1.8,
+    arrowstyle: str = "-|>",
+    **kw: Any,
 ) -> None:
     """A straight arrow from a to b in data coordinates."""
-    style = kw.pop("arrowstyle", "-|>")
     ax.add_patch(
-        FancyArrowPatch(
-            a, b, arrowstyle=style, mutation_scale=14, color=color, lw=kw.pop("lw", 1.8), **kw
-        )
+        FancyArrowPatch(a, b, arrowstyle=arrowstyle, mutation_scale=14, color=color, lw=lw, **kw)
     )
 
 
@@ -79,7 +84,7 @@ def line3(ax: Axes, pts: np.ndarray, **kw: object) -> None:
     ax.plot(q[:, 0], q[:, 1], **kw)  # type: ignore[arg-type]
 
 
-def arrow3(ax: Axes, a: np.ndarray, b: np.ndarray, color: str, **kw: object) -> None:
+def arrow3(ax: Axes, a: np.ndarray, b: np.ndarray, color: str, **kw: Any) -> None:
     pa, pb = proj(a), proj(b)
     arrow(ax, (pa[0], pa[1]), (pb[0], pb[1]), color, **kw)
 
@@ -173,7 +178,7 @@ def panel_camera_frame(ax: Axes) -> None:
     q0 = proj(np.zeros(3))
     ax.annotate(
         "$O_m$ (viewpoint)",
-        q0,
+        (q0[0], q0[1]),
         (q0[0] - 0.95, q0[1] + 0.15),
         fontsize=11,
         ha="right",
@@ -413,11 +418,16 @@ def panel_panorama(ax: Axes) -> None:
 
     # where P of panel (a) lands (fractional column/row, pixel-center convention)
     theta_deg, rho_deg = math.degrees(P_THETA), math.degrees(P_RHO)
-    k = ((0.0 - theta_deg) % 360.0) / (360.0 / W) - 0.5
+    kcol = ((0.0 - theta_deg) % 360.0) / (360.0 / W) - 0.5
     lrow = (elev[1] - rho_deg) / ((elev[1] - elev[0]) / H) - 0.5
-    ax.plot(k, lrow, "o", color=POINT_COLOR, ms=7)
+    ax.plot(kcol, lrow, "o", color=POINT_COLOR, ms=7)
     ax.text(
-        k + 8, lrow - 6, f"P: column {k:.1f}, row {lrow:.1f}", fontsize=9.5, ha="left", va="bottom"
+        kcol + 8,
+        lrow - 6,
+        f"P: column {kcol:.1f}, row {lrow:.1f}",
+        fontsize=9.5,
+        ha="left",
+        va="bottom",
     )
 
     ax.text(

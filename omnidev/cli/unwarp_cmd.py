@@ -86,7 +86,12 @@ def run(args: argparse.Namespace) -> int:
         raise OmnidevError("give an input source (path or URI)")
     views = [parse_view(v) for v in args.view]
     camera = load_camera(calib_path, _options(args.camera_option))
-    remappers = [Remapper(build_maps(camera, v), interpolation=args.interpolation) for v in views]
+    try:
+        remappers = [
+            Remapper(build_maps(camera, v), interpolation=args.interpolation) for v in views
+        ]
+    except ValueError as exc:  # a view the camera cannot fill (e.g. no elevation band)
+        raise OmnidevError(f"{calib_path}: {exc}") from None
     with open_source(uri) as source:
         fps = args.fps or source.fps or 25.0
         writers = [FrameWriter(o, fps=fps, force=args.force) for o in args.output]
