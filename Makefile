@@ -15,8 +15,12 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-$(VENV)/.installed: $(BIN)/python pyproject.toml $(PLUGINS)
-	$(BIN)/python -m pip install --quiet -e '.[test]' $(addprefix -e ,$(dir $(PLUGINS)))
+$(VENV)/.system-deps: scripts/install-system-deps.sh | $(BIN)/python
+	sh scripts/install-system-deps.sh
+	touch $@
+
+$(VENV)/.installed: $(BIN)/python $(VENV)/.system-deps pyproject.toml $(PLUGINS)
+	$(BIN)/python -m pip install --quiet -e '.[test,hw]' $(addprefix -e ,$(dir $(PLUGINS)))
 	touch $@
 
 setup: $(VENV)/.installed

@@ -25,3 +25,15 @@ class PluginError(OmnidevError):
 
 class OutputError(OmnidevError):
     """An output that cannot be written (exists, unwritable directory)."""
+
+
+class SinkError(OmnidevError):
+    """A pointer sink that cannot be opened or stopped accepting events."""
+
+
+class ConfigError(OmnidevError):
+    """A daemon configuration that is invalid; the message names the key."""
+
+
+class TrackerError(OmnidevError):
+    """A tracker that cannot be created or cannot process a frame."""
