@@ -117,7 +117,10 @@ def get(group: str, name: str) -> Any:
         raise PluginError(str(clash[0].error))
     ok = sorted(objects)
     installed = ", ".join(ok) if ok else "none"
-    kind = {"omnidev.unwarpers": "camera kind", "omnidev.sources": "source scheme"}.get(
-        group, "plugin"
-    )
+    kind = {
+        "omnidev.unwarpers": "camera kind",
+        "omnidev.sources": "source scheme",
+        "omnidev.trackers": "tracker",
+        "omnidev.sinks": "sink",
+    }.get(group, "plugin")
     raise PluginError(f"no plugin for {kind} {name!r} in {group}; installed: {installed}")

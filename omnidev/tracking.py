@@ -38,6 +38,6 @@ def open_tracker(name: str, options: Mapping[str, Any], calibration: Path | None
     try:
         opener = registry.get(GROUP, name)
     except PluginError as exc:
-        raise TrackerError(f"tracker {name!r}: {exc}") from None
+        raise TrackerError(str(exc)) from None
     tracker: Tracker = opener(dict(options), calibration)
     return tracker

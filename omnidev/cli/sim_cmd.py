@@ -19,6 +19,14 @@ def register(sub: Any) -> None:
     o.add_argument("--camera", choices=("svp-hyperbolic", "equidistant"), default="svp-hyperbolic")
     o.add_argument("--force", action="store_true", help="replace an existing folder")
     o.set_defaults(func=run)
+    b = ssub.add_parser("blob", help="a bright spot moving over a dark picture (pointer fixture)")
+    b.add_argument("outdir", type=Path)
+    b.add_argument("--size", default="640x480", metavar="WxH")
+    b.add_argument("--frames", type=int, default=120)
+    b.add_argument("--fps", type=float, default=60.0)
+    b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--force", action="store_true", help="replace an existing folder")
+    b.set_defaults(func=run_blob)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -31,6 +39,29 @@ def run(args: argparse.Namespace) -> int:
         fps=args.fps,
         seed=args.seed,
         camera=args.camera,
+        force=args.force,
+    )
+    print(f"wrote {args.outdir}/")
+    return 0
+
+
+def run_blob(args: argparse.Namespace) -> int:
+    from omnidev.errors import OmnidevError
+    from omnidev.sim.blob import make_blob_fixture
+
+    try:
+        w, h = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        raise OmnidevError(f"--size {args.size!r} is not WxH") from None
+    if w < 64 or h < 64 or args.frames < 8 or args.fps <= 0:
+        raise OmnidevError("--size must be at least 64x64, --frames >= 8 and --fps > 0")
+    make_blob_fixture(
+        args.outdir,
+        frames=args.frames,
+        width=w,
+        height=h,
+        fps=args.fps,
+        seed=args.seed,
         force=args.force,
     )
     print(f"wrote {args.outdir}/")

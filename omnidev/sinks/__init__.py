@@ -2,7 +2,7 @@
 
 | sink | output | adapter module |
 |---|---|---|
-| ``uinput`` | a kernel absolute pointer through /dev/uinput | :mod:`omnidev.sinks.uinput_sink` |
+| ``uinput`` | a kernel absolute pointer (/dev/uinput) | :mod:`omnidev.sinks.uinput_sink` |
 | ``xtest`` | an X server's pointer through XTest | :mod:`omnidev.sinks.xtest_sink` |
 | ``hidg`` | a USB HID mouse seen by another computer (/dev/hidgN) | :mod:`omnidev.sinks.hidg_sink` |
 | ``record`` | JSON lines, one per event | :mod:`omnidev.sinks.record` |
@@ -32,6 +32,6 @@ def open_sink(name: str, options: Mapping[str, Any], mapping: ScreenMapping) -> 
     try:
         opener = registry.get(GROUP, name)
     except PluginError as exc:
-        raise SinkError(f"sink {name!r}: {exc}") from None
+        raise SinkError(str(exc)) from None
     sink: PointerSink = opener(dict(options), mapping)
     return sink

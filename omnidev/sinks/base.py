@@ -10,11 +10,12 @@ ends by an exception, and (with :func:`release_on_signals`) on SIGTERM/SIGINT.
 
 from __future__ import annotations
 
+import logging
 import signal
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from types import FrameType, TracebackType
 from typing import Any
 
@@ -23,6 +24,7 @@ from omnidev.frame import PointerSample
 from omnidev.screen import ScreenMapping, clamp01
 
 BUTTONS = ("left", "right", "middle")
+log = logging.getLogger("omnidev.sinks")
 
 
 class PointerSink(ABC):
@@ -46,6 +48,8 @@ class PointerSink(ABC):
         self.events = 0
         self.closed = False
         self.last_position: tuple[float, float] | None = None
+        # capture time (monotonic ns) of the sample being emitted, for sinks that log it
+        self.capture_ns: int | None = None
 
     # -- what subclasses provide -------------------------------------------------
     @abstractmethod
@@ -56,7 +60,7 @@ class PointerSink(ABC):
     def _button(self, button: str, down: bool) -> None:
         """Press (``down``) or release one of :data:`BUTTONS`."""
 
-    def _flush(self) -> None:
+    def _flush(self) -> None:  # noqa: B027 - optional hook, most sinks need none
         """End the current report (after a move and its button changes)."""
 
     @abstractmethod
@@ -92,14 +96,18 @@ class PointerSink(ABC):
         """Move to the sample's position and make the buttons match its ``buttons``."""
         self._check_open()
         nx, ny = clamp01(sample.x), clamp01(sample.y)
-        self._move(nx, ny)
-        self.last_position = (nx, ny)
-        self.events += 1
-        for b in BUTTONS:
-            want = b in sample.buttons
-            if want != (b in self.pressed):
-                self._set_button(b, want)
-        self._flush()
+        self.capture_ns = sample.timestamp_ns
+        try:
+            self._move(nx, ny)
+            self.last_position = (nx, ny)
+            self.events += 1
+            for b in BUTTONS:
+                want = b in sample.buttons
+                if want != (b in self.pressed):
+                    self._set_button(b, want)
+            self._flush()
+        finally:
+            self.capture_ns = None
 
     def release_all(self) -> None:
         """Release every button that is down; errors on one do not stop the others."""
@@ -142,16 +150,16 @@ class PointerSink(ABC):
     def __del__(self) -> None:
         # Last resort only; close() is the contract.
         if not getattr(self, "closed", True) and getattr(self, "pressed", None):
-            try:
+            with suppress(Exception):
                 self.close()
-            except Exception:
-                pass
 
     # -- helpers -----------------------------------------------------------------
     def _set_button(self, button: str, down: bool) -> None:
         self._check_open()
         if button not in BUTTONS:
-            raise SinkError(f"{self.name}: unknown button {button!r} (buttons: left, right, middle)")
+            raise SinkError(
+                f"{self.name}: unknown button {button!r} (buttons: left, right, middle)"
+            )
         if down == (button in self.pressed):
             return
         self._button(button, down)
@@ -195,4 +203,4 @@ def release_on_signals(*sinks: PointerSink) -> Iterator[None]:
             try:
                 sink.close()
             except Exception:
-                pass
+                log.exception("closing sink %s", sink.name)

@@ -7,7 +7,9 @@ Lines (``t_ns`` is the monotonic clock, ns):
     {"t_ns": ..., "kind": "button", "button": "left", "down": true}
     {"t_ns": ..., "kind": "close"}
 
-``x``/``y`` are the clamped normalized position, ``pixel`` the layout pixel.
+``x``/``y`` are the clamped normalized position, ``pixel`` the layout pixel;
+a move made from a tracker's sample also has ``capture_ns``, the capture time
+of the frame it came from.
 Each line is flushed as it is written, so a crash loses nothing before it.
 """
 
@@ -55,7 +57,8 @@ class RecordSink(PointerSink):
             raise SinkError(f"record sink: writing {self.path}: {exc.strerror}") from None
 
     def _move(self, nx: float, ny: float) -> None:
-        self._write(kind="move", x=nx, y=ny, pixel=list(self.mapping.to_pixel(nx, ny)))
+        extra = {} if self.capture_ns is None else {"capture_ns": self.capture_ns}
+        self._write(kind="move", x=nx, y=ny, pixel=list(self.mapping.to_pixel(nx, ny)), **extra)
 
     def _button(self, button: str, down: bool) -> None:
         self._write(kind="button", button=button, down=down)

@@ -1,0 +1,207 @@
+"""The daemon's TOML configuration, validated with messages that name the key.
+
+[source]
+uri = "v4l2:/dev/video0?width=640&height=480&fps=30"   # any omnidev source URI
+
+[tracker]
+name = "bright-blob"          # a plugin of group omnidev.trackers
+calibration = ""              # optional path of the tracker's calibration file
+[tracker.options]             # passed to the tracker as they are
+threshold = 200
+
+[filter]
+kind = "one-euro"             # or "none"
+min_cutoff = 1.0              # Hz
+beta = 0.007                  # s per screen width
+d_cutoff = 1.0                # Hz
+
+[sink]
+name = "uinput"               # a plugin of group omnidev.sinks
+[sink.options]                # passed to the sink as they are
+
+[screen]
+rect = "1920x1080+0+0"        # the target screen in the desktop layout (WxH+X+Y)
+layout = "1920x1080"          # the whole desktop (default: the rect's extent)
+
+[daemon]
+socket = "/run/omnidev/control.sock"
+queue = 2                     # frames waiting for the tracker; older ones are dropped
+retry_initial_s = 0.5         # camera retry backoff: first wait ...
+retry_max_s = 10.0            # ... doubling up to this
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from omnidev.errors import ConfigError
+from omnidev.screen import ScreenMapping, ScreenRect
+
+DEFAULT_CONFIG = Path("/etc/omnidev/omnidev.toml")
+DEFAULT_SOCKET = Path("/run/omnidev/control.sock")
+
+_SECTIONS: dict[str, set[str]] = {
+    "source": {"uri"},
+    "tracker": {"name", "calibration", "options"},
+    "filter": {"kind", "min_cutoff", "beta", "d_cutoff"},
+    "sink": {"name", "options"},
+    "screen": {"rect", "layout"},
+    "daemon": {"socket", "queue", "retry_initial_s", "retry_max_s"},
+}
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Smoothing: ``kind`` "one-euro" (Casiez et al. 2012) or "none"; cutoffs in Hz."""
+
+    kind: str = "one-euro"
+    min_cutoff: float = 1.0
+    beta: float = 0.007
+    d_cutoff: float = 1.0
+
+
+@dataclass(frozen=True)
+class DaemonConfig:
+    """A validated configuration (see the module docstring for the file format)."""
+
+    path: Path
+    source: str
+    tracker: str
+    sink: str
+    screen: ScreenMapping
+    tracker_options: dict[str, Any] = field(default_factory=dict)
+    calibration: Path | None = None
+    filter: FilterConfig = FilterConfig()
+    sink_options: dict[str, Any] = field(default_factory=dict)
+    socket: Path = DEFAULT_SOCKET
+    queue: int = 2
+    retry_initial_s: float = 0.5
+    retry_max_s: float = 10.0
+
+
+def load_config(path: Path) -> DaemonConfig:
+    """Read and validate ``path``; a :class:`ConfigError` names the file and key."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: configuration file not found") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    return parse_config(doc, path)
+
+
+def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
+    """Validate a parsed TOML document (``path`` only names it in messages)."""
+
+    def fail(key: str, msg: str) -> ConfigError:
+        return ConfigError(f"{path}: {key}: {msg}")
+
+    for section, value in doc.items():
+        if section not in _SECTIONS:
+            raise fail(section, f"unknown section (sections: {', '.join(_SECTIONS)})")
+        if not isinstance(value, dict):
+            raise fail(section, "must be a table ([" + section + "])")
+        for key in value:
+            if key not in _SECTIONS[section]:
+                known = ", ".join(sorted(_SECTIONS[section]))
+                raise fail(f"{section}.{key}", f"unknown key (keys of [{section}]: {known})")
+
+    def get(section: str, key: str, kind: type | tuple[type, ...], default: Any = None) -> Any:
+        value = doc.get(section, {}).get(key, default)
+        if value is None:
+            if default is None:
+                raise fail(f"{section}.{key}", "missing (required)")
+            return default
+        if isinstance(value, bool) and bool not in (kind if isinstance(kind, tuple) else (kind,)):
+            raise fail(f"{section}.{key}", f"must be {_kind_name(kind)}, got {value!r}")
+        if not isinstance(value, kind):
+            raise fail(f"{section}.{key}", f"must be {_kind_name(kind)}, got {value!r}")
+        return value
+
+    def positive(section: str, key: str, default: float, allow_zero: bool = False) -> float:
+        value = float(get(section, key, (int, float), default))
+        if not (value > 0 or (allow_zero and value == 0)) or value != value:
+            raise fail(f"{section}.{key}", f"must be a number {'>=' if allow_zero else '>'} 0")
+        return value
+
+    source = get("source", "uri", str)
+    if not source.strip():
+        raise fail("source.uri", "is empty")
+    tracker = get("tracker", "name", str)
+    calib_text = get("tracker", "calibration", str, "")
+    calibration = Path(calib_text) if calib_text else None
+    if calibration is not None and not calibration.is_absolute():
+        calibration = path.parent / calibration
+    if calibration is not None and not calibration.is_file():
+        raise fail("tracker.calibration", f"file {calibration} not found")
+    tracker_options = get("tracker", "options", dict, {})
+    sink = get("sink", "name", str)
+    sink_options = get("sink", "options", dict, {})
+
+    kind = get("filter", "kind", str, "one-euro")
+    if kind not in ("one-euro", "none"):
+        raise fail("filter.kind", f"must be 'one-euro' or 'none', got {kind!r}")
+    filt = FilterConfig(
+        kind,
+        positive("filter", "min_cutoff", 1.0),
+        positive("filter", "beta", 0.007, allow_zero=True),
+        positive("filter", "d_cutoff", 1.0),
+    )
+
+    rect_text = get("screen", "rect", str, "1920x1080+0+0")
+    try:
+        rect = ScreenRect.parse(rect_text)
+    except ValueError as exc:
+        raise fail("screen.rect", str(exc)) from None
+    layout_text = get("screen", "layout", str, f"{rect.x + rect.width}x{rect.y + rect.height}")
+    try:
+        layout = ScreenRect.parse(layout_text)
+        mapping = ScreenMapping(rect, layout.width, layout.height)
+    except ValueError as exc:
+        raise fail("screen.layout", str(exc)) from None
+
+    queue = get("daemon", "queue", int, 2)
+    if queue < 1:
+        raise fail("daemon.queue", "must be >= 1")
+    retry_initial = positive("daemon", "retry_initial_s", 0.5)
+    retry_max = positive("daemon", "retry_max_s", 10.0)
+    if retry_max < retry_initial:
+        raise fail("daemon.retry_max_s", "must be >= daemon.retry_initial_s")
+    socket = Path(get("daemon", "socket", str, str(DEFAULT_SOCKET)))
+    return DaemonConfig(
+        path=path,
+        source=source,
+        tracker=tracker,
+        sink=sink,
+        screen=mapping,
+        tracker_options=tracker_options,
+        calibration=calibration,
+        filter=filt,
+        sink_options=sink_options,
+        socket=socket,
+        queue=queue,
+        retry_initial_s=retry_initial,
+        retry_max_s=retry_max,
+    )
+
+
+def _kind_name(kind: type | tuple[type, ...]) -> str:
+    names = {
+        str: "a string",
+        int: "an integer",
+        float: "a number",
+        dict: "a table",
+        bool: "true/false",
+    }
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    if set(kinds) == {int, float}:
+        return "a number"
+    return " or ".join(names.get(k, k.__name__) for k in kinds)

@@ -1,0 +1,157 @@
+"""``omnidevd`` (also ``omnidev daemon``): run the pointer pipeline unattended.
+
+Reads the configuration (``--config``, default /etc/omnidev/omnidev.toml),
+opens tracker and sink, tells systemd it is ready (Type=notify), pings the
+watchdog while the pipeline is healthy, answers the control socket, reloads
+on SIGHUP or ``omnidev ctl reload``, and on SIGTERM/SIGINT stops with every
+pointer button released.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from omnidev.daemon import sdnotify
+from omnidev.daemon.config import DEFAULT_CONFIG, load_config
+from omnidev.daemon.control import ControlServer
+from omnidev.daemon.pipeline import Pipeline
+from omnidev.errors import OmnidevError
+
+log = logging.getLogger("omnidevd")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--config", type=Path, default=DEFAULT_CONFIG, help=f"TOML file (default {DEFAULT_CONFIG})"
+    )
+    p.add_argument("--socket", type=Path, help="control socket (overrides [daemon] socket)")
+    p.add_argument(
+        "--log-level", default="info", choices=("debug", "info", "warning", "error"), help="logging"
+    )
+    p.add_argument(
+        "--check", action="store_true", help="validate the configuration, open nothing, exit"
+    )
+
+
+class Daemon:
+    """The pipeline plus its control surface; :meth:`run` blocks until stopped."""
+
+    def __init__(self, config_path: Path, socket: Path | None = None) -> None:
+        self.config_path = config_path
+        self.socket_override = socket
+        self.config = load_config(config_path)
+        self.pipeline = Pipeline(self.config)
+        self.stopping = threading.Event()
+        self.reload_requested = threading.Event()
+        self.server: ControlServer | None = None
+
+    @property
+    def socket(self) -> Path:
+        return self.socket_override or self.config.socket
+
+    def handle(self, cmd: str, args: dict[str, Any]) -> dict[str, Any]:
+        """Control-socket commands: status, pause, resume, reload."""
+        if cmd == "status":
+            return {"ok": True, **self.pipeline.status()}
+        if cmd == "pause":
+            self.pipeline.pause()
+            log.info("paused")
+            return {"ok": True, "state": "paused"}
+        if cmd == "resume":
+            self.pipeline.resume()
+            log.info("resumed")
+            return {"ok": True, "state": self.pipeline.state}
+        if cmd == "reload":
+            try:
+                self.reload()
+            except OmnidevError as exc:
+                return {"ok": False, "error": str(exc)}
+            return {"ok": True, "state": self.pipeline.state}
+        return {"ok": False, "error": f"unknown command {cmd!r} (status, pause, resume, reload)"}
+
+    def reload(self) -> None:
+        config = load_config(self.config_path)
+        self.pipeline.reload(config)
+        self.config = config
+
+    def run(self) -> int:
+        self.pipeline.start()
+        self.server = ControlServer(self.socket, self.handle)
+        self.server.start()
+        sdnotify.ready()
+        log.info(
+            "running: %s -> %s -> %s (control socket %s)",
+            self.config.source,
+            self.config.tracker,
+            self.config.sink,
+            self.socket,
+        )
+        period = sdnotify.watchdog_interval_s() or 1.0
+        try:
+            while not self.stopping.wait(min(period, 1.0)):
+                if self.reload_requested.is_set():
+                    self.reload_requested.clear()
+                    try:
+                        self.reload()
+                    except OmnidevError as exc:
+                        log.error("reload failed, keeping the running configuration: %s", exc)
+                if not self.pipeline.alive:
+                    log.error("pipeline thread died; exiting so systemd restarts the daemon")
+                    return 1
+                if self.pipeline.healthy():
+                    sdnotify.watchdog()
+                st = self.pipeline.status()
+                sdnotify.status(f"{st['state']}: {st['fps']} fps, {st['dropped_frames']} dropped")
+        finally:
+            sdnotify.stopping()
+            self.pipeline.stop()
+            self.server.close()
+            log.info("stopped; all buttons released")
+        return 0
+
+
+def run_daemon(args: argparse.Namespace) -> int:
+    logging.basicConfig(
+        level=args.log_level.upper(),
+        format="%(asctime)s omnidevd %(levelname)s %(message)s",
+        stream=sys.stderr,
+    )
+    if args.check:
+        config = load_config(args.config)
+        print(f"{args.config}: ok ({config.source} -> {config.tracker} -> {config.sink})")
+        return 0
+    daemon = Daemon(args.config, args.socket)
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        if signum == signal.SIGHUP:
+            daemon.reload_requested.set()
+        else:
+            log.info("signal %d: stopping", signum)
+            daemon.stopping.set()
+
+    for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+        signal.signal(sig, on_signal)
+    return daemon.run()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="omnidevd", description=__doc__.splitlines()[0])
+    add_arguments(p)
+    args = p.parse_args(argv)
+    try:
+        return run_daemon(args)
+    except OmnidevError as exc:
+        print(f"omnidevd: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

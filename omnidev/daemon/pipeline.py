@@ -1,0 +1,290 @@
+"""The pointer pipeline: source -> tracker -> One Euro filter -> sink, on its own threads.
+
+Two threads:
+
+- *capture* opens the source and puts frames into a bounded queue; when the
+  queue is full the oldest frame is dropped (and counted), so a slow tracker
+  costs frames, never latency. When the source fails (camera unplugged) it
+  logs, tells the worker to release every button, and reopens the source with
+  exponential backoff until it comes back.
+- *worker* takes frames, runs the tracker, filters the sample and hands it to
+  the sink. Only this thread touches the sink; it closes the sink (releasing
+  buttons) when it ends, whatever the reason.
+
+Latency of a frame = monotonic time when the sink call returned (the event is
+with the OS) minus the frame's capture timestamp.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from omnidev.daemon.config import DaemonConfig
+from omnidev.errors import OmnidevError
+from omnidev.filters import OneEuroFilter
+from omnidev.frame import Frame, PointerSample
+from omnidev.sinks import PointerSink, open_sink
+from omnidev.sources import open_source
+from omnidev.tracking import Tracker, open_tracker
+
+log = logging.getLogger("omnidevd")
+
+
+@dataclass
+class _Stats:
+    frames: int = 0
+    tracked: int = 0
+    dropped_frames: int = 0
+    tracker_errors: int = 0
+    sink_errors: int = 0
+    camera_retries: int = 0
+
+
+class Pipeline:
+    """Runs one configuration; :meth:`reload` swaps in another without a restart.
+
+    Args:
+        config: the validated configuration.
+        on_sample: optional callback ``(sample, t_done_ns)`` after each sink
+            call, from the worker thread (tests and benchmarks use it).
+    """
+
+    def __init__(self, config: DaemonConfig, on_sample: Any = None) -> None:
+        self.config = config
+        self.on_sample = on_sample
+        self.state = "starting"
+        self.started = time.monotonic()
+        self._stats = _Stats()
+        self._latency_ns: deque[int] = deque(maxlen=2000)
+        self._times_ns: deque[int] = deque(maxlen=120)
+        self._queue: queue.Queue[Frame] = queue.Queue(maxsize=config.queue)
+        self._lost = threading.Event()  # release buttons, reset, take pending parts
+        self._stop = threading.Event()
+        self._restart_source = threading.Event()
+        self._paused = threading.Event()
+        self._lock = threading.Lock()
+        self.heartbeat = time.monotonic()
+        self.tracker: Tracker = open_tracker(
+            config.tracker, config.tracker_options, config.calibration
+        )
+        self.filter = self._make_filter(config)
+        self.sink: PointerSink = open_sink(config.sink, config.sink_options, config.screen)
+        self._pending: tuple[Tracker, OneEuroFilter | None, PointerSink | None] | None = None
+        self._capture = threading.Thread(target=self._capture_loop, name="capture", daemon=True)
+        self._worker = threading.Thread(target=self._work_loop, name="worker", daemon=True)
+
+    # -- control ---------------------------------------------------------------
+    def start(self) -> None:
+        self._capture.start()
+        self._worker.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop both threads; the worker releases buttons and closes the sink."""
+        self._stop.set()
+        for t in (self._capture, self._worker):
+            if t.is_alive():
+                t.join(timeout)
+        if not self.sink.closed:  # the worker never ran or is stuck: close here
+            self.sink.close()
+        self.state = "stopped"
+
+    def pause(self) -> None:
+        """Keep capturing but stop moving the pointer; buttons are released."""
+        self._paused.set()
+        self._lost.set()
+
+    def resume(self) -> None:
+        self._paused.clear()
+
+    def reload(self, config: DaemonConfig) -> None:
+        """Apply a new configuration: new tracker and filter; new sink or source if changed.
+
+        Opening the new tracker or sink may fail; then nothing changes and the
+        error is raised.
+        """
+        tracker = open_tracker(config.tracker, config.tracker_options, config.calibration)
+        sink = None
+        if (config.sink, config.sink_options, config.screen) != (
+            self.config.sink,
+            self.config.sink_options,
+            self.config.screen,
+        ):
+            sink = open_sink(config.sink, config.sink_options, config.screen)
+        source_changed = config.source != self.config.source
+        with self._lock:
+            if self._pending is not None and self._pending[2] is not None:
+                self._pending[2].close()  # an earlier reload's sink, never used
+            self._pending = (tracker, self._make_filter(config), sink)
+            self.config = config
+        if source_changed:
+            self._restart_source.set()
+        self._lost.set()  # the worker picks up the pending parts at once
+        log.info("configuration reloaded from %s", config.path)
+
+    @property
+    def alive(self) -> bool:
+        return self._worker.is_alive() and self._capture.is_alive()
+
+    def healthy(self, max_silence_s: float = 5.0) -> bool:
+        """Both threads run and the worker has looked at its queue recently."""
+        return self.alive and time.monotonic() - self.heartbeat < max_silence_s
+
+    def status(self) -> dict[str, Any]:
+        """Figures for the control socket (latencies in ms over the last 2000 frames)."""
+        lat = np.array(self._latency_ns, np.float64) / 1e6
+        times = list(self._times_ns)
+        fps = (len(times) - 1) / ((times[-1] - times[0]) / 1e9) if len(times) > 1 else 0.0
+        s = self._stats
+        return {
+            "state": "paused" if self._paused.is_set() and self.state == "running" else self.state,
+            "source": self.config.source,
+            "sink": self.sink.name,
+            "tracker": self.config.tracker,
+            "fps": round(fps, 2),
+            "latency_p50_ms": round(float(np.percentile(lat, 50)), 3) if lat.size else None,
+            "latency_p99_ms": round(float(np.percentile(lat, 99)), 3) if lat.size else None,
+            "frames": s.frames,
+            "tracked": s.tracked,
+            "dropped_frames": s.dropped_frames,
+            "tracker_errors": s.tracker_errors,
+            "sink_errors": s.sink_errors,
+            "events": self.sink.events,
+            "camera_retries": s.camera_retries,
+            "uptime_s": round(time.monotonic() - self.started, 1),
+        }
+
+    def latencies_ns(self) -> list[int]:
+        return list(self._latency_ns)
+
+    # -- threads ---------------------------------------------------------------
+    def _put(self, frame: Frame) -> None:
+        """Queue a frame; when the queue is full, drop the oldest to make room."""
+        while True:
+            try:
+                self._queue.put_nowait(frame)
+                return
+            except queue.Full:
+                try:
+                    self._queue.get_nowait()
+                    self._stats.dropped_frames += 1
+                except queue.Empty:
+                    pass
+
+    def _capture_loop(self) -> None:
+        delay = self.config.retry_initial_s
+        while not self._stop.is_set():
+            uri = self.config.source
+            self._restart_source.clear()
+            try:
+                source = open_source(uri)
+            except OmnidevError as exc:
+                self._wait_for_camera(exc, delay)
+                delay = min(delay * 2, self.config.retry_max_s)
+                continue
+            try:
+                with source:
+                    log.info("source %s open", uri)
+                    self.state = "running"
+                    delay = self.config.retry_initial_s
+                    for frame in source:
+                        self._stats.frames += 1
+                        self._put(frame)
+                        if self._stop.is_set() or self._restart_source.is_set():
+                            break
+                    else:
+                        raise OmnidevError(f"{uri}: the source ended")
+            except OmnidevError as exc:
+                self._lost.set()
+                self._wait_for_camera(exc, delay)
+                delay = min(delay * 2, self.config.retry_max_s)
+            except Exception as exc:  # OpenCV or driver errors: same treatment, logged in full
+                log.exception("source %s failed", uri)
+                self._lost.set()
+                self._wait_for_camera(exc, delay)
+                delay = min(delay * 2, self.config.retry_max_s)
+
+    def _wait_for_camera(self, exc: BaseException, delay: float) -> None:
+        if self._stop.is_set():
+            return
+        self.state = "waiting for camera"
+        self._stats.camera_retries += 1
+        log.warning("%s; retrying in %.1f s", exc, delay)
+        self._stop.wait(delay)
+
+    def _work_loop(self) -> None:
+        try:
+            while not self._stop.is_set():
+                self.heartbeat = time.monotonic()
+                if self._lost.is_set():
+                    self._lost.clear()
+                    self._on_lost()
+                try:
+                    frame = self._queue.get(timeout=0.05)
+                except queue.Empty:
+                    continue
+                if not self._paused.is_set() and not self._lost.is_set():
+                    self._process(frame)
+        finally:
+            try:
+                self.sink.close()
+            except Exception:
+                log.exception("closing sink %s", self.sink.name)
+
+    def _on_lost(self) -> None:
+        with self._lock:
+            pending, self._pending = self._pending, None
+        try:
+            self.sink.release_all()
+        except Exception:
+            log.exception("releasing buttons on %s", self.sink.name)
+        if pending is not None:
+            tracker, filt, sink = pending
+            self.tracker, self.filter = tracker, filt
+            if sink is not None:
+                old, self.sink = self.sink, sink
+                old.close()
+        self.tracker.reset()
+        if self.filter is not None:
+            self.filter.reset()
+
+    def _process(self, frame: Frame) -> None:
+        try:
+            sample = self.tracker.track(frame)
+        except Exception as exc:
+            self._stats.tracker_errors += 1
+            log.warning("tracker %s failed on frame %d: %s", self.config.tracker, frame.index, exc)
+            return
+        if sample is None:
+            return
+        if self.filter is not None:
+            x, y = self.filter(sample.timestamp_ns / 1e9, [sample.x, sample.y])
+            sample = PointerSample(
+                float(x), float(y), sample.timestamp_ns, sample.confidence, sample.buttons
+            )
+        try:
+            self.sink.emit(sample)
+        except Exception as exc:
+            self._stats.sink_errors += 1
+            log.error("sink %s failed: %s", self.sink.name, exc)
+            return
+        done = time.monotonic_ns()
+        self._stats.tracked += 1
+        self._latency_ns.append(done - frame.timestamp_ns)
+        self._times_ns.append(done)
+        if self.on_sample is not None:
+            self.on_sample(sample, done)
+
+    @staticmethod
+    def _make_filter(config: DaemonConfig) -> OneEuroFilter | None:
+        f = config.filter
+        if f.kind == "none":
+            return None
+        return OneEuroFilter(f.min_cutoff, f.beta, f.d_cutoff)

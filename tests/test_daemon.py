@@ -1,0 +1,186 @@
+"""The pointer daemon on the host: configuration errors, and the pipeline run on the
+blob fixture into the record sink, checked against the fixture's truth."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from omnidev.daemon.config import load_config
+from omnidev.daemon.pipeline import Pipeline
+from omnidev.errors import ConfigError
+from omnidev.sim.blob import load_blob_truth
+from omnidev.sinks.record import read_events
+from tests.daemon_helpers import BLOB, blob_config, match_to_truth
+
+
+def wait_for(pred, timeout=20.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+@pytest.mark.parametrize(
+    "text,key",
+    [
+        ("[source]\n", "source.uri: missing"),
+        (
+            '[source]\nuri = 3\n[tracker]\nname="x"\n[sink]\nname="r"\n',
+            "source.uri: must be a string",
+        ),
+        (
+            '[source]\nuri="a"\n[tracker]\nname="x"\n[sink]\nname="r"\n[filter]\nbeta=-1\n',
+            "filter.beta",
+        ),
+        (
+            '[source]\nuri="a"\n[tracker]\nname="x"\n[sink]\nname="r"\n[filter]\nkind="kalman"\n',
+            "filter.kind",
+        ),
+        (
+            '[source]\nuri="a"\n[tracker]\nname="x"\n[sink]\nname="r"\n[screen]\nrect="big"\n',
+            "screen.rect",
+        ),
+        (
+            '[source]\nuri="a"\n[tracker]\nname="x"\n[sink]\nname="r"\n[screen]\nrect="100x100+50+0"\nlayout="120x100"\n',
+            "screen.layout",
+        ),
+        ('[source]\nuri="a"\nfps=3\n', "source.fps: unknown key"),
+        ("[camera]\n", "camera: unknown section"),
+        (
+            '[source]\nuri="a"\n[tracker]\nname="x"\ncalibration="nope.yml"\n',
+            "tracker.calibration: file",
+        ),
+        (
+            '[source]\nuri="a"\n[tracker]\nname="x"\n[sink]\nname="r"\n[daemon]\nqueue=0\n',
+            "daemon.queue",
+        ),
+        ("[source\n", "not valid TOML"),
+    ],
+)
+def test_config_errors_name_the_key(tmp_path, text, key):
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    msg = str(info.value)
+    assert str(path) in msg and key in msg and "\n" not in msg
+
+
+def test_cli_config_error_is_one_line(tmp_path, capsys):
+    from omnidev.daemon.main import main
+
+    path = tmp_path / "c.toml"
+    path.write_text(
+        '[source]\nuri="a"\n[tracker]\nname="x"\n[sink]\nname="record"\n[filter]\nbeta="fast"\n'
+    )
+    assert main(["--config", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "filter.beta: must be a number" in err
+    assert main(["--config", str(tmp_path / "missing.toml")]) == 2
+    assert "configuration file not found" in capsys.readouterr().err
+
+
+def test_unknown_plugins_are_named(tmp_path):
+    cfg = load_config(
+        blob_config(tmp_path, f"video:{BLOB}/blob.avi", "record", f'path = "{tmp_path}/r.jsonl"')
+    )
+    from dataclasses import replace
+
+    from omnidev.errors import OmnidevError
+
+    with pytest.raises(OmnidevError, match="tracker 'nope'.*installed: .*bright-blob"):
+        Pipeline(replace(cfg, tracker="nope"))
+    with pytest.raises(OmnidevError, match="sink 'nope'.*installed: .*record"):
+        Pipeline(replace(cfg, sink="nope"))
+
+
+def test_pipeline_follows_the_blob_into_the_record_sink(tmp_path):
+    rec = tmp_path / "events.jsonl"
+    cfg = load_config(
+        blob_config(tmp_path, f"video:{BLOB}/blob.avi?rate=60", "record", f'path = "{rec}"')
+    )
+    truth = load_blob_truth(BLOB / "truth.json")
+    p = Pipeline(cfg)
+    p.start()
+    try:
+        assert wait_for(lambda: p.status()["state"] == "waiting for camera")  # file ended
+        status = p.status()
+    finally:
+        p.stop()
+    events = list(read_events(rec))
+    moves = [e for e in events if e["kind"] == "move"]
+    assert status["frames"] == len(truth)
+    assert len(moves) + status["dropped_frames"] == len(truth)
+    assert len(moves) >= 0.9 * len(truth)
+    pairs = match_to_truth([(m["x"], m["y"]) for m in moves], truth)
+    err_px = np.array([e for _, e in pairs]) * 1919  # normalized -> target-screen px
+    print(
+        f"\nblob -> record: {len(moves)} moves, error mean {err_px.mean():.3f} px, "
+        f"max {err_px.max():.3f} px (1920-px screen); latency p50 {status['latency_p50_ms']} ms"
+    )
+    assert err_px.max() < 1.0
+    # every move carries the capture time of its frame; latency is positive
+    assert all(0 < e["t_ns"] - m["capture_ns"] < 1e9 for m in moves for e in [m])
+    # buttons: the press/release sequence follows the fixture's clicks
+    button_events = [(e["button"], e["down"]) for e in events if e["kind"] == "button"]
+    want = []
+    state = False
+    for i, _ in pairs:
+        if truth[i].pressed != state:
+            state = truth[i].pressed
+            want.append(("left", state))
+    if state:
+        want.append(("left", False))  # released when the source ended
+    assert button_events == want
+    assert events[-1]["kind"] == "close"
+
+
+def test_stop_while_pressed_releases(tmp_path):
+    """The source is paced so that the fixture is in a click when the pipeline stops."""
+    rec = tmp_path / "events.jsonl"
+    truth = load_blob_truth(BLOB / "truth.json")
+    first_press = next(i for i, t in enumerate(truth) if t.pressed)
+    cfg = load_config(
+        blob_config(tmp_path, f"video:{BLOB}/blob.avi?rate=60", "record", f'path = "{rec}"')
+    )
+    p = Pipeline(cfg)
+    p.start()
+    try:
+        assert wait_for(lambda: "left" in p.sink.pressed, 10)
+    finally:
+        p.stop()
+    events = list(read_events(rec))
+    buttons = [(e["button"], e["down"]) for e in events if e["kind"] == "button"]
+    assert buttons[-1] == ("left", False) and buttons.count(("left", True)) == 1
+    assert first_press > 0
+
+
+def test_camera_gone_and_back(tmp_path):
+    """The source file disappears (camera unplugged): the daemon waits, retries, resumes."""
+    video = tmp_path / "cam.avi"
+    video.write_bytes((BLOB / "blob.avi").read_bytes())
+    rec = tmp_path / "events.jsonl"
+    cfg = load_config(blob_config(tmp_path, f"video:{video}?rate=120", "record", f'path = "{rec}"'))
+    p = Pipeline(cfg)
+    p.start()
+    try:
+        assert wait_for(lambda: p.status()["tracked"] > 10)
+        video.rename(tmp_path / "unplugged.avi")
+        assert wait_for(lambda: p.status()["state"] == "waiting for camera")
+        retries = p.status()["camera_retries"]
+        assert wait_for(lambda: p.status()["camera_retries"] >= retries + 2)
+        assert not p.sink.pressed
+        tracked = p.status()["tracked"]
+        (tmp_path / "unplugged.avi").rename(video)
+        assert wait_for(lambda: p.status()["tracked"] > tracked + 10)
+        assert p.alive
+    finally:
+        p.stop()
+    text = rec.read_text()
+    assert json.loads(text.splitlines()[-1])["kind"] == "close"
