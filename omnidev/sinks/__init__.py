@@ -4,7 +4,7 @@
 |---|---|---|
 | ``uinput`` | a kernel absolute pointer (/dev/uinput) | :mod:`omnidev.sinks.uinput_sink` |
 | ``xtest`` | an X server's pointer through XTest | :mod:`omnidev.sinks.xtest_sink` |
-| ``hidg`` | a USB HID mouse seen by another computer (/dev/hidgN) | :mod:`omnidev.sinks.hidg_sink` |
+| ``hidg`` | a USB HID mouse for another computer (/dev/hidgN) | :mod:`omnidev.sinks.hidg_sink` |
 | ``record`` | JSON lines, one per event | :mod:`omnidev.sinks.record` |
 
 A sink plugin's entry point is a callable ``open(options, mapping) -> PointerSink``
