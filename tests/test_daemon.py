@@ -184,3 +184,27 @@ def test_camera_gone_and_back(tmp_path):
         p.stop()
     text = rec.read_text()
     assert json.loads(text.splitlines()[-1])["kind"] == "close"
+
+
+def test_replay_cli_reproduces_a_recording(tmp_path, capsys):
+    from omnidev.cli.main import main
+
+    rec = tmp_path / "events.jsonl"
+    cfg = load_config(
+        blob_config(tmp_path, f"video:{BLOB}/blob.avi?rate=240", "record", f'path = "{rec}"')
+    )
+    p = Pipeline(cfg)
+    p.start()
+    try:
+        assert wait_for(lambda: p.status()["state"] == "waiting for camera")
+    finally:
+        p.stop()
+    out = tmp_path / "again.jsonl"
+    argv = ["replay", str(rec), "--sink", "record", "--sink-option", f"path={out}", "--fast"]
+    assert main(argv) == 0
+    a = [e for e in read_events(rec) if e["kind"] in ("move", "button")]
+    b = [e for e in read_events(out) if e["kind"] in ("move", "button")]
+    strip = [{k: v for k, v in e.items() if k not in ("t_ns", "capture_ns")} for e in a]
+    assert strip == [{k: v for k, v in e.items() if k != "t_ns"} for e in b]
+    assert main(["replay", str(tmp_path / "none.jsonl"), "--sink", "record"]) == 2
+    assert "recording not found" in capsys.readouterr().err

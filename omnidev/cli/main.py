@@ -21,6 +21,9 @@ SUBCOMMANDS = (
     "unwarp_cmd",
     "sim_cmd",
     "bench_cmd",
+    "daemon_cmd",
+    "ctl_cmd",
+    "replay_cmd",
 )
 
 

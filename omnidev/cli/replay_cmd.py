@@ -1,0 +1,71 @@
+"""``omnidev replay RECORDING --sink NAME``: play a ``record`` sink's JSON lines into a sink."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from omnidev.errors import OmnidevError
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "replay",
+        help="replay a pointer recording (JSON lines of the record sink) into a sink",
+        description="Send the moves and buttons of a recording to a sink, with the "
+        "original timing unless --fast. Every button is released at the end, on "
+        "Ctrl-C and on SIGTERM.",
+    )
+    p.add_argument("recording", type=Path, help="JSON lines written by the record sink")
+    p.add_argument("--sink", required=True, help="sink plugin: uinput, xtest, hidg, record")
+    p.add_argument(
+        "--sink-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a sink option (repeatable), e.g. display=:1 or device=/dev/hidg0",
+    )
+    p.add_argument("--screen", default="1920x1080+0+0", help="target screen WxH+X+Y in the layout")
+    p.add_argument("--layout", help="whole desktop WxH (default: the screen's extent)")
+    p.add_argument("--fast", action="store_true", help="no pauses between events")
+    p.set_defaults(func=run)
+
+
+def _value(text: str) -> Any:
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False}.get(text.lower(), text)
+
+
+def run(args: argparse.Namespace) -> int:
+    from omnidev.screen import ScreenMapping, ScreenRect
+    from omnidev.sinks import open_sink, release_on_signals
+    from omnidev.sinks.record import replay
+
+    if not args.recording.is_file():
+        raise OmnidevError(f"{args.recording}: recording not found")
+    options: dict[str, Any] = {}
+    for item in args.sink_option:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise OmnidevError(f"--sink-option {item!r} is not KEY=VALUE")
+        options[key] = _value(value)
+    try:
+        rect = ScreenRect.parse(args.screen)
+        layout = ScreenRect.parse(args.layout) if args.layout else None
+        mapping = ScreenMapping(
+            rect,
+            layout.width if layout else rect.x + rect.width,
+            layout.height if layout else rect.y + rect.height,
+        )
+    except ValueError as exc:
+        raise OmnidevError(str(exc)) from None
+    sink = open_sink(args.sink, options, mapping)
+    with release_on_signals(sink):
+        sent = replay(args.recording, sink, realtime=not args.fast)
+    print(f"replayed {sent} events into {args.sink}")
+    return 0
