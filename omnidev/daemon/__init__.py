@@ -1,0 +1,1 @@
+"""omnidevd, the pointer daemon: config, pipeline, systemd notification, control socket."""
