@@ -37,11 +37,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from omnidev.daemon.control import DEFAULT_SOCKET
 from omnidev.errors import ConfigError
 from omnidev.screen import ScreenMapping, ScreenRect
 
 DEFAULT_CONFIG = Path("/etc/omnidev/omnidev.toml")
-DEFAULT_SOCKET = Path("/run/omnidev/control.sock")
 
 _SECTIONS: dict[str, set[str]] = {
     "source": {"uri"},
