@@ -8,7 +8,7 @@ PLUGINS := $(wildcard plugins/*/pyproject.toml)
 OUT    ?= out/demo
 FIXTURE := fixtures/omni_room
 
-.PHONY: setup demo test lint clean
+.PHONY: setup demo test lint install uninstall clean
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "omnidev needs Python >= 3.11"'
@@ -45,6 +45,14 @@ lint: setup
 
 test: lint
 	$(BIN)/python -m pytest
+
+# System files for the pointer daemon (udev rules, units, config, user): needs root.
+#   sudo make install INSTALL_ARGS="--bin-dir /opt/omnidev/bin --camera 046d:0825"
+install:
+	sh scripts/install-system-files.sh $(INSTALL_ARGS)
+
+uninstall:
+	sh scripts/install-system-files.sh --uninstall
 
 clean:
 	rm -rf $(VENV) out build *.egg-info
