@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import signal
 import sys
 import threading
@@ -119,9 +120,13 @@ class Daemon:
 
 
 def run_daemon(args: argparse.Namespace) -> int:
+    # Under systemd the journal stamps every line itself.
+    journal = bool(os.environ.get("JOURNAL_STREAM"))
     logging.basicConfig(
         level=args.log_level.upper(),
-        format="%(asctime)s omnidevd %(levelname)s %(message)s",
+        format="%(levelname)s %(message)s"
+        if journal
+        else "%(asctime)s omnidevd %(levelname)s %(message)s",
         stream=sys.stderr,
     )
     if args.check:
