@@ -76,7 +76,7 @@ def run(quick: bool = False) -> dict[str, Any]:
             "filter": {"kind": "one-euro", "min_cutoff": 1.0, "beta": 0.007},
             "sink": {"name": "xtest", "options": {"display": display}},
             "screen": {"rect": "1920x1080+0+0"},
-            "daemon": {"queue": 2},
+            "daemon": {"queue": 1},
         }
         config = parse_config(doc, Path("bench/pointer.py"))
         pipeline = Pipeline(config)

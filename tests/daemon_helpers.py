@@ -53,9 +53,9 @@ def match_to_truth(
 ) -> list[tuple[int, float]]:
     """Pair each reported position (normalized) with the frame it came from.
 
-    Frames are reported in order, some may be dropped: each position is paired
-    with the nearest truth among the next ``window`` frames after the previous
-    pair (the path loops, so indices wrap). Returns (frame index, error in
+    Frames are reported in order, some may be dropped or repeated: each position
+    is paired with the nearest truth among the previous pair's frame and the
+    ``window`` frames after it (the path loops, so indices wrap). Returns (frame index, error in
     normalized units) per position.
     """
     out: list[tuple[int, float]] = []
@@ -72,6 +72,7 @@ def match_to_truth(
         j = min(range(n), key=lambda i: err(i, 0))
     out.append((j, err(j, 0)))
     for k in range(1, len(positions)):
-        j = min(((j + d) % n for d in range(1, window + 1)), key=lambda i: err(i, k))
+        # d = 0: a camera may deliver the same picture twice
+        j = min(((j + d) % n for d in range(0, window + 1)), key=lambda i: err(i, k))
         out.append((j, err(j, k)))
     return out

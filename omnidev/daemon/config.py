@@ -25,7 +25,7 @@ layout = "1920x1080"          # the whole desktop (default: the rect's extent)
 
 [daemon]
 socket = "/run/omnidev/control.sock"
-queue = 2                     # frames waiting for the tracker; older ones are dropped
+queue = 1                     # frames waiting for the tracker; older ones are dropped
 retry_initial_s = 0.5         # camera retry backoff: first wait ...
 retry_max_s = 10.0            # ... doubling up to this
 """
@@ -77,7 +77,7 @@ class DaemonConfig:
     filter: FilterConfig = FilterConfig()
     sink_options: dict[str, Any] = field(default_factory=dict)
     socket: Path = DEFAULT_SOCKET
-    queue: int = 2
+    queue: int = 1
     retry_initial_s: float = 0.5
     retry_max_s: float = 10.0
 
@@ -168,7 +168,7 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
     except ValueError as exc:
         raise fail("screen.layout", str(exc)) from None
 
-    queue = get("daemon", "queue", int, 2)
+    queue = get("daemon", "queue", int, 1)
     if queue < 1:
         raise fail("daemon.queue", "must be >= 1")
     retry_initial = positive("daemon", "retry_initial_s", 0.5)
