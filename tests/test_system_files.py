@@ -456,7 +456,7 @@ def test_example_config_is_valid_and_complete():
     assert doc["filter"] == {"kind": "one-euro", "min_cutoff": 1.0, "beta": 0.007, "d_cutoff": 1.0}
     assert doc["daemon"] == {
         "socket": "/run/omnidev/control.sock",
-        "queue": 2,
+        "queue": 1,
         "retry_initial_s": 0.5,
         "retry_max_s": 10,
     }
