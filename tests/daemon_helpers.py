@@ -49,7 +49,7 @@ retry_max_s = 1.0
 
 
 def match_to_truth(
-    positions: Sequence[tuple[float, float]], truth: Sequence[BlobTruth], window: int = 6
+    positions: Sequence[tuple[float, float]], truth: Sequence[BlobTruth], window: int = 12
 ) -> list[tuple[int, float]]:
     """Pair each reported position (normalized) with the frame it came from.
 
