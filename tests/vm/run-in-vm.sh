@@ -30,6 +30,8 @@ mountpoint -q /sys/kernel/config || mount -t configfs none /sys/kernel/config \
     || log "mounting configfs failed"
 
 log "modules loaded"
+# The project's own udev rules, as `make install` would put them (tests/vm/test_udev_rules.py).
+mkdir -p /run/udev/rules.d && cp "$REPO/udev/60-omnidev.rules" /run/udev/rules.d/
 # udev gives input devices their ID_INPUT_* properties (libinput needs them).
 /lib/systemd/systemd-udevd --daemon
 log "udevd started"
