@@ -1,4 +1,4 @@
-#!/bin/bash
+#!/bin/sh
 # omnidev-gadget.sh: make this board a USB mouse for the computer its USB device
 # port is plugged into (Linux USB HID gadget through configfs). omnidev's `hidg`
 # sink then writes pointer reports to the /dev/hidgN node this creates.
@@ -26,7 +26,8 @@
 #   python -m omnidev.hid_reports --descriptor absolute --hex
 #   python -m omnidev.hid_reports --descriptor relative --hex
 
-set -euo pipefail
+# POSIX sh (dash runs it as well as bash).
+set -eu
 
 # absolute: 3 buttons + 5 bits padding, X/Y 16-bit 0..32767; 5-byte reports, subclass 0
 ABSOLUTE_DESC_HEX=05010902a1010901a10005091901290315002501950375018102950175058103050109300931150026ff7f751095028102c0c0
@@ -151,10 +152,21 @@ pick_udc() {
     [ -n "$udc" ] || die "no USB device controller in /sys/class/udc: the USB port must be in device (peripheral/OTG) mode, e.g. on a Raspberry Pi add dtoverlay=dwc2 to config.txt and load the dwc2 module (see docs/hid-gadget.md); for a test without hardware, modprobe dummy_hcd"
 }
 
+# Hex text to bytes, with POSIX printf only (octal escapes in the format).
+write_hex() {
+    fmt="" rest=$1
+    while [ -n "$rest" ]; do
+        fmt="$fmt$(printf '\\%03o' "0x$(printf '%.2s' "$rest")")"
+        rest=${rest#??}
+    done
+    # shellcheck disable=SC2059  # the format is the descriptor's octal escapes
+    printf "$fmt"
+}
+
 serial_number() {
     if [ -n "${SERIAL:-}" ]; then echo "$SERIAL"; return; fi
     local s
-    s=$(tr -d '\0' < /proc/device-tree/serial-number 2>/dev/null || true)
+    s=$(tr -d '\0' 2>/dev/null < /proc/device-tree/serial-number || true)
     [ -n "$s" ] || s=$(head -c 16 /etc/machine-id 2>/dev/null || true)
     echo "${s:-0}"
 }
@@ -196,8 +208,7 @@ setup_gadget() {
     if [ -e "functions/$FUNCTION/no_out_endpoint" ]; then
         echo 1 > "functions/$FUNCTION/no_out_endpoint"
     fi
-    # shellcheck disable=SC2059  # the format is the descriptor's \xHH escapes
-    printf "$(echo "$desc_hex" | sed 's/../\\x&/g')" > "functions/$FUNCTION/report_desc"
+    write_hex "$desc_hex" > "functions/$FUNCTION/report_desc"
     [ "$(current_desc_hex)" = "$desc_hex" ] || die "report_desc did not read back as written"
     ln -s "functions/$FUNCTION" "configs/$CONFIG/"
 

@@ -77,7 +77,7 @@ def run_script(*args: str, udc: str | None = UDC) -> subprocess.CompletedProcess
     if udc is not None:
         env["UDC"] = udc
     return subprocess.run(
-        ["bash", str(SCRIPT), *args], env=env, capture_output=True, text=True, timeout=120
+        [str(SCRIPT), *args], env=env, capture_output=True, text=True, timeout=120
     )
 
 
