@@ -72,6 +72,7 @@ class Pipeline:
         self._paused = threading.Event()
         self._lock = threading.Lock()
         self.heartbeat = time.monotonic()
+        self._sink_failing = False
         self.tracker: Tracker = open_tracker(
             config.tracker, config.tracker_options, config.calibration
         )
@@ -272,9 +273,15 @@ class Pipeline:
         try:
             self.sink.emit(sample)
         except Exception as exc:
+            # e.g. a USB host unplugged from the hidg gadget: keep going, log once
             self._stats.sink_errors += 1
-            log.error("sink %s failed: %s", self.sink.name, exc)
+            if not self._sink_failing:
+                log.error("sink %s failed: %s (retrying with every frame)", self.sink.name, exc)
+            self._sink_failing = True
             return
+        if self._sink_failing:
+            log.info("sink %s works again", self.sink.name)
+            self._sink_failing = False
         done = time.monotonic_ns()
         self._stats.tracked += 1
         self._latency_ns.append(done - frame.timestamp_ns)
