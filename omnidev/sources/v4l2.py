@@ -1,4 +1,9 @@
-"""``v4l2:/dev/videoN?width=&height=&fps=&fourcc=`` — a V4L2 capture device through OpenCV."""
+"""``v4l2:/dev/videoN?width=&height=&fps=&fourcc=&buffers=`` — a V4L2 capture device (OpenCV).
+
+``buffers`` sets how many frames the driver may queue (OpenCV's default is 4):
+a pointing device wants 1 or 2, so that a slow consumer gets a fresh frame
+rather than one captured several frame periods ago.
+"""
 
 from __future__ import annotations
 
@@ -15,19 +20,21 @@ from omnidev.errors import SourceError
 from omnidev.frame import Frame
 from omnidev.sources import SourceBase, check_options
 
-OPTIONS = {"width", "height", "fps", "fourcc"}
+OPTIONS = {"width", "height", "fps", "fourcc", "buffers"}
 
 
 def parse_v4l2_options(uri: str, options: dict[str, str]) -> dict[str, int | float | str]:
-    """Validate the URI options: positive integers for width/height, a number for fps,
+    """Validate the URI options: positive integers for width/height/buffers, a number for fps,
     four characters for fourcc.
 
     >>> parse_v4l2_options("v4l2:/dev/video0", {"width": "640", "fourcc": "MJPG"})
     {'width': 640, 'fourcc': 'MJPG'}
+    >>> parse_v4l2_options("v4l2:/dev/video0", {"buffers": "1"})
+    {'buffers': 1}
     """
     check_options(uri, options, OPTIONS)
     out: dict[str, int | float | str] = {}
-    for key in ("width", "height"):
+    for key in ("width", "height", "buffers"):
         if key in options:
             try:
                 value = int(options[key])
@@ -71,6 +78,8 @@ class V4L2Source(SourceBase):
             raise SourceError(f"{self.name}: OpenCV's V4L2 backend cannot open it")
         if "fourcc" in settings:
             self._cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter.fourcc(*str(settings["fourcc"])))
+        if "buffers" in settings:
+            self._cap.set(cv2.CAP_PROP_BUFFERSIZE, float(settings["buffers"]))
         props = {
             "width": cv2.CAP_PROP_FRAME_WIDTH,
             "height": cv2.CAP_PROP_FRAME_HEIGHT,

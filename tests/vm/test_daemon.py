@@ -45,7 +45,7 @@ def _fixture() -> tuple[Path, list[Any]]:
 
 def _doc(capture: str, phys: str, socket: str) -> dict[str, Any]:
     return {
-        "source": {"uri": f"v4l2:{capture}?width=640&height=480"},
+        "source": {"uri": f"v4l2:{capture}?width=640&height=480&buffers=2"},
         "tracker": {"name": "bright-blob", "options": {"press_area": 700}},
         "filter": {"kind": "none"},
         "sink": {"name": "uinput", "options": {"phys": phys}},
