@@ -1,0 +1,359 @@
+"""The detection stage of the camera mouse (dissertation sec. 6.2.1), step by step.
+
+1. Threshold the grey image into a binary image I (dark = landmark candidate).
+2. Connected components of the dark pixels of I.
+3. Keep regions whose area and bounding-box width-to-height ratio suit a landmark circle.
+4. Every group of four remaining region centers C1..C4 (ordered TL, TR, BR, BL) is kept
+   when its quadrilateral S is like the screen: (a) opposite sides roughly equal,
+   (b) all four corners roughly right angles, (c) width-to-height ratio R of S near the
+   landmark layout's.
+5. The groups passing step 4 form the candidate set D_L; none means no detection.
+6. For each group, each side C_iC_{i+1} is paired with the parallel screen border just
+   inside it: a Hough transform over a narrow range of angles around the side's direction,
+   restricted to a search window W along the side's inner edge, votes with the edge pixels
+   (Canny) of W; its peak is the side's edge strength E_i; the group's total is
+   E_1 + ... + E_4, and the group with the largest total is the landmark set.
+
+Beyond the dissertation (each can be disabled): the centers are refined to sub-pixel by a
+darkness-weighted centroid; each side's edge strength must reach ``min_edge_fraction``
+of the searched border length, so dark blobs with no screen border between them do not
+lock; and the border line found by the Hough transform must pass through the screen
+corners that the group predicts (:func:`omnidev.mouse.geometry.screen_corners_from_landmarks`),
+so a stray blob next to a missing landmark does not complete a group with the other three.
+
+All positions are image pixels (x right, y down, origin at the center of the top-left pixel).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.mouse.geometry import screen_corners_from_landmarks
+from omnidev.mouse.landmarks import LandmarkLayout
+
+
+@dataclass(frozen=True)
+class DetectParams:
+    """Tuning of :func:`detect_landmarks` (pixels unless said otherwise).
+
+    Attributes:
+        threshold: grey level below which a pixel is dark (step 1).
+        min_area, max_area: area of a landmark circle's region (pixels, step 3).
+        max_elongation: largest bounding-box width/height (or height/width) ratio (step 3).
+        max_side_ratio: largest ratio of opposite sides' lengths (step 4a).
+        max_angle_error_deg: largest deviation of a corner angle from 90 degrees (step 4b).
+        max_aspect_error: largest relative deviation of R from the layout's (step 4c).
+        max_regions: at most this many regions (the largest) enter the exhaustive search.
+        hough_angle_deg: the Hough transform searches directions within this many degrees
+            of the side's (step 6a), in steps of ``hough_angle_step_deg``.
+        end_margin: fraction of each side left out at both ends of W (the landmarks' own
+            white squares are there).
+        min_edge_fraction: each side's edge strength must reach this fraction of W's
+            length (0 turns the check off, as in the dissertation).
+        max_border_offset_px: the Hough peak line of each side must pass within this
+            many pixels of both screen corners predicted from the group's landmarks and
+            the layout (inf turns the check off, as in the dissertation).
+        refine: refine centers by the darkness-weighted centroid (else binary centroid).
+    """
+
+    threshold: int = 100
+    min_area: int = 12
+    max_area: int = 5000
+    max_elongation: float = 2.2
+    max_side_ratio: float = 1.8
+    max_angle_error_deg: float = 35.0
+    max_aspect_error: float = 0.45
+    max_regions: int = 24
+    hough_angle_deg: float = 6.0
+    hough_angle_step_deg: float = 0.5
+    end_margin: float = 0.2
+    min_edge_fraction: float = 0.5
+    max_border_offset_px: float = 3.0
+    refine: bool = True
+
+
+@dataclass(frozen=True)
+class HoughLine:
+    """A Hough peak in a side's frame: the line at angle ``phi`` (radians) from the side
+    p -> p + length * t_hat, at distance ``rho`` (pixels, along the rotated normal) from
+    the side's midpoint; t_hat and n_hat the side's unit direction and inward normal."""
+
+    phi: float
+    rho: float
+    p: NDArray[np.float64]
+    t_hat: NDArray[np.float64]
+    n_hat: NDArray[np.float64]
+    length: float
+
+    def distance(self, pts: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Distances (pixels) of (n, 2) image points from the line."""
+        rel = np.atleast_2d(pts) - self.p
+        s = rel @ self.t_hat - self.length / 2.0
+        t = rel @ self.n_hat
+        d = t * math.cos(self.phi) - s * math.sin(self.phi) - self.rho
+        return np.asarray(np.abs(d), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class Detection:
+    """A detected landmark set: centers (4, 2) TL, TR, BR, BL (pixels), the screen corners
+    (4, 2) TL, TR, BR, BL (pixels) they predict, the total edge strength of step 6c, the
+    per-side strengths E_1..E_4 (votes = edge pixels) and the size of the candidate set
+    D_L."""
+
+    centers: NDArray[np.float64]
+    screen_corners: NDArray[np.float64]
+    strength: float
+    side_strengths: tuple[float, float, float, float]
+    candidates: int
+
+
+def to_gray(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """An (H, W) uint8 grey image from (H, W) or BGR (H, W, 3) uint8."""
+    if image.ndim == 3:
+        return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+    if image.ndim != 2:
+        raise ValueError(f"expected an (H, W) or (H, W, 3) image, got shape {image.shape}")
+    return image
+
+
+def find_dark_regions(
+    gray: NDArray[np.uint8], params: DetectParams = DetectParams()
+) -> NDArray[np.float64]:
+    """Steps 1-3: centers (n, 2) of the dark regions shaped like landmark circles.
+
+    The largest ``params.max_regions`` regions are kept, largest first.
+    """
+    dark = (gray < params.threshold).astype(np.uint8)
+    n, labels, stats, centroids = cv2.connectedComponentsWithStats(dark, connectivity=8)
+    keep: list[tuple[int, int]] = []
+    for i in range(1, n):
+        x, y, w, h, area = (int(v) for v in stats[i])
+        if not params.min_area <= area <= params.max_area:
+            continue
+        if max(w, h) > params.max_elongation * min(w, h):
+            continue
+        # A region touching the image border is cut off: its center would be wrong.
+        if x == 0 or y == 0 or x + w == gray.shape[1] or y + h == gray.shape[0]:
+            continue
+        keep.append((area, i))
+    keep.sort(reverse=True)
+    keep = keep[: params.max_regions]
+    out = np.empty((len(keep), 2))
+    for k, (_, i) in enumerate(keep):
+        if params.refine:
+            out[k] = _weighted_centroid(gray, stats[i], labels == i)
+        else:
+            out[k] = centroids[i]
+    return out
+
+
+def _weighted_centroid(
+    gray: NDArray[np.uint8], stat: NDArray[np.int32], mask: NDArray[np.bool_]
+) -> NDArray[np.float64]:
+    """Darkness-weighted centroid over the region's box grown by 2 pixels; darkness is
+    scaled between the box's brightest level (0) and the region's mean level (1)."""
+    x, y, w, h = (int(v) for v in stat[:4])
+    x0, y0 = max(0, x - 2), max(0, y - 2)
+    x1, y1 = min(gray.shape[1], x + w + 2), min(gray.shape[0], y + h + 2)
+    patch = gray[y0:y1, x0:x1].astype(np.float64)
+    inner = patch[mask[y0:y1, x0:x1]]
+    lo, hi = float(np.median(inner)), float(patch.max())
+    if hi - lo < 1.0:
+        ys, xs = np.nonzero(mask[y0:y1, x0:x1])
+        return np.array([xs.mean() + x0, ys.mean() + y0])
+    wgt = np.clip((hi - patch) / (hi - lo), 0.0, 1.0)
+    # Pixels not connected to the region (a neighbour's darkness) are left out.
+    grown = cv2.dilate(mask[y0:y1, x0:x1].astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    wgt = wgt * grown
+    ys, xs = np.mgrid[y0:y1, x0:x1]
+    s = wgt.sum()
+    return np.array([(wgt * xs).sum() / s, (wgt * ys).sum() / s])
+
+
+def order_corners(points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Four points ordered TL, TR, BR, BL: clockwise (y down) by angle about their mean,
+    starting from the one whose direction from the mean is nearest to up-left (-135 deg)."""
+    p = np.asarray(points, dtype=np.float64)
+    d = p - p.mean(axis=0)
+    ang = np.arctan2(d[:, 1], d[:, 0])
+    order = np.argsort(ang)
+    start = int(np.argmin(np.abs(np.angle(np.exp(1j * (ang[order] + 3 * math.pi / 4))))))
+    return p[np.roll(order, -start)]
+
+
+def shape_checks(
+    quad: NDArray[np.float64], expected_aspect: float, params: DetectParams = DetectParams()
+) -> bool:
+    """Step 4 (a, b, c) on an ordered quadrilateral C1..C4 (TL, TR, BR, BL)."""
+    d = np.linalg.norm(quad - np.roll(quad, -1, axis=0), axis=1)  # C1C2, C2C3, C3C4, C4C1
+    if d.min() <= 1e-9:
+        return False
+    # (a) opposite sides roughly equal: |C1-C2| ~ |C3-C4|, |C1-C4| ~ |C2-C3|.
+    if max(d[0], d[2]) > params.max_side_ratio * min(d[0], d[2]):
+        return False
+    if max(d[1], d[3]) > params.max_side_ratio * min(d[1], d[3]):
+        return False
+    # (b) four roughly right angles (and a convex, clockwise quadrilateral).
+    cos_max = math.sin(math.radians(params.max_angle_error_deg))
+    for i in range(4):
+        a = quad[i - 1] - quad[i]
+        b = quad[(i + 1) % 4] - quad[i]
+        if abs(float(a @ b)) / (np.linalg.norm(a) * np.linalg.norm(b)) > cos_max:
+            return False
+        e1, e2 = quad[i] - quad[i - 1], quad[(i + 1) % 4] - quad[i]
+        if e1[0] * e2[1] - e1[1] * e2[0] <= 0:
+            return False
+    # (c) R = ((|C1-C2| + |C3-C4|)/2) / ((|C1-C4| + |C2-C3|)/2) near the layout's ratio.
+    R = (d[0] + d[2]) / (d[1] + d[3])
+    return bool(abs(R / expected_aspect - 1.0) <= params.max_aspect_error)
+
+
+def side_edge_strength(
+    edges: NDArray[np.uint8],
+    p: NDArray[np.float64],
+    q: NDArray[np.float64],
+    depth_px: float,
+    params: DetectParams = DetectParams(),
+) -> tuple[float, float, HoughLine | None]:
+    """Steps 6a-6b for one side p -> q of a clockwise quadrilateral (y down).
+
+    The search window W is the band along the side, from the side itself ``depth_px``
+    pixels inwards (to the side's right when walking p -> q), leaving out ``end_margin``
+    of the side at both ends. A Hough transform over lines at angles within
+    ``hough_angle_deg`` of the side's direction, 1-pixel distance bins, is voted by the
+    edge pixels of W; the peak is taken over two adjacent distance bins (a digital line
+    is two bins wide). Returns (peak votes E_i, length of W along the side in pixels,
+    the peak's line or None when W holds no edge pixel).
+    """
+    v = q - p
+    length = float(np.hypot(*v))
+    if length < 1.0:
+        return 0.0, 0.0, None
+    t_hat = v / length
+    n_hat = np.array([-t_hat[1], t_hat[0]])  # inwards for clockwise order with y down
+    s0, s1 = params.end_margin * length, (1.0 - params.end_margin) * length
+    corners = np.array(
+        [p + t_hat * s + n_hat * t for s in (s0, s1) for t in (-1.0, depth_px + 1.0)]
+    )
+    h, w = edges.shape
+    x0, y0 = np.floor(corners.min(axis=0)).astype(int)
+    x1, y1 = np.ceil(corners.max(axis=0)).astype(int) + 1
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+    if x1 <= x0 or y1 <= y0:
+        return 0.0, s1 - s0, None
+    ys, xs = np.nonzero(edges[y0:y1, x0:x1])
+    rel = np.column_stack([xs + x0, ys + y0]).astype(np.float64) - p
+    s = rel @ t_hat
+    t = rel @ n_hat
+    inside = (s >= s0) & (s <= s1) & (t >= 0.0) & (t <= depth_px)
+    s, t = s[inside], t[inside]
+    if s.size == 0:
+        return 0.0, s1 - s0, None
+    # Hough: line at angle phi from the side, distance rho from the side's midpoint.
+    phis = np.radians(
+        np.arange(
+            -params.hough_angle_deg,
+            params.hough_angle_deg + 1e-9,
+            params.hough_angle_step_deg,
+        )
+    )
+    sm = s - length / 2.0
+    rho = t[None, :] * np.cos(phis)[:, None] - sm[None, :] * np.sin(phis)[:, None]
+    bins = np.floor(rho + 0.5).astype(np.int64)
+    lo = int(bins.min())
+    nb = int(bins.max()) - lo + 1
+    acc = np.zeros((phis.size, nb), np.int64)
+    rows = np.broadcast_to(np.arange(phis.size)[:, None], bins.shape)
+    np.add.at(acc, (rows.ravel(), (bins - lo).ravel()), 1)
+    # A digital 1-pixel line spreads over two neighbouring 1-pixel rho bins: the peak is
+    # taken over pairs of bins (a 2-pixel wide line).
+    centre = 0.0
+    if nb > 1:
+        acc = acc[:, :-1] + acc[:, 1:]
+        centre = 0.5
+    k_phi, k_rho = np.unravel_index(int(np.argmax(acc)), acc.shape)
+    peak = HoughLine(float(phis[k_phi]), float(k_rho + lo + centre), p, t_hat, n_hat, length)
+    return float(acc[k_phi, k_rho]), s1 - s0, peak
+
+
+def detect_landmarks(
+    image: NDArray[np.uint8],
+    layout: LandmarkLayout,
+    params: DetectParams = DetectParams(),
+) -> Detection | None:
+    """The detection stage of sec. 6.2.1 on one frame (grey or BGR uint8).
+
+    Returns the landmark set with the largest total edge strength, or None when no group
+    of four regions passes the shape checks and the edge-strength floor (no false lock
+    with fewer than four landmark-like blobs).
+    """
+    gray = to_gray(image)
+    centers = find_dark_regions(gray, params)
+    if len(centers) < 4:
+        return None
+    expected = layout.landmark_aspect_ratio()
+    candidates: list[NDArray[np.float64]] = []
+    for idx in itertools.combinations(range(len(centers)), 4):
+        quad = order_corners(centers[list(idx)])
+        if shape_checks(quad, expected, params):
+            candidates.append(quad)
+    if not candidates:
+        return None
+    edges = np.asarray(cv2.Canny(gray, 50, 150), dtype=np.uint8)
+    # Inward distance of the screen border from each landmark side, in mm (monitor plane).
+    lm = layout.landmark_centers_mm()
+    sc = layout.screen_corners_mm()
+    side_mm = np.linalg.norm(lm - np.roll(lm, -1, axis=0), axis=1)
+    inset_mm = [
+        _inset(lm[i], lm[(i + 1) % 4], sc[i], sc[(i + 1) % 4], layout.square_side_mm)
+        for i in range(4)
+    ]
+    best: Detection | None = None
+    for quad in candidates:
+        strengths: list[float] = []
+        ok = True
+        screen = screen_corners_from_landmarks(quad, layout)
+        for i in range(4):
+            p, q = quad[i], quad[(i + 1) % 4]
+            px_per_mm = float(np.linalg.norm(q - p)) / side_mm[i]
+            depth = max(4.0, 2.0 * inset_mm[i] * px_per_mm)
+            e, span, line = side_edge_strength(edges, p, q, depth, params)
+            if e < params.min_edge_fraction * span:
+                ok = False
+            elif line is not None and math.isfinite(params.max_border_offset_px):
+                off = line.distance(screen[[i, (i + 1) % 4]])
+                ok = ok and bool(off.max() <= params.max_border_offset_px)
+            strengths.append(e)
+        if not ok:
+            continue
+        total = float(sum(strengths))
+        if best is None or total > best.strength:
+            best = Detection(
+                quad,
+                screen,
+                total,
+                (strengths[0], strengths[1], strengths[2], strengths[3]),
+                len(candidates),
+            )
+    return best
+
+
+def _inset(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    sa: NDArray[np.float64],
+    sb: NDArray[np.float64],
+    square_mm: float,
+) -> float:
+    """Largest inward distance (mm) from the landmark line a -> b to the screen border
+    sa -> sb (at least the landmark square's half side, so W is never empty)."""
+    v = (b - a) / np.linalg.norm(b - a)
+    n = np.array([-v[1], v[0]])
+    return float(max((sa - a) @ n, (sb - a) @ n, square_mm / 2.0))

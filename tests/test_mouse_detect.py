@@ -1,0 +1,74 @@
+"""Detection stage (sec. 6.2.1) on drawn images: landmarks warped by a known homography onto
+a room with dark distractor blobs, screen content with dark dots (some in a decoy rectangle
+of the landmarks' aspect ratio); truth = the landmark centers projected by the camera."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from omnidev.mouse.detect import DetectParams, detect_landmarks, find_dark_regions, order_corners
+from omnidev.mouse.geometry import cursor_homography, image_center
+from tests.mouse_scene import LAYOUT, oblique_camera, render
+
+VIEWS = [(0, 0, 0), (0, 0, 25), (30, 0, 0), (40, 10, -15), (-35, -15, 30)]
+
+
+@pytest.mark.parametrize(("yaw", "pitch", "roll"), VIEWS)
+def test_detects_the_four_landmarks_within_half_a_pixel(yaw, pitch, roll):
+    cam = oblique_camera(yaw, pitch_deg=pitch, roll_deg=roll)
+    img = render(cam, seed=abs(yaw) + 7 * abs(roll))
+    truth = cam.project(LAYOUT.landmark_centers_mm())
+    # More dark regions than landmarks pass the area/shape filter: the search is real.
+    assert len(find_dark_regions(img)) >= 10
+    det = detect_landmarks(img, LAYOUT)
+    assert det is not None
+    assert det.candidates >= 2
+    err = np.linalg.norm(det.centers - truth, axis=1).max()
+    assert err < 0.5, err
+    # The screen corners they predict, and the cursor from them (1920x1080 pixels).
+    sc_truth = cam.project(LAYOUT.screen_corners_mm())
+    assert np.linalg.norm(det.screen_corners - sc_truth, axis=1).max() < 1.0
+    cur = cursor_homography(det.screen_corners, image_center(*cam.size))
+    assert np.linalg.norm((cur - cam.true_cursor()) * [1920, 1080]) < 3.0
+
+
+def test_bgr_input_and_faithful_mode():
+    cam = oblique_camera(25, roll_deg=10)
+    img = cv2.cvtColor(render(cam, seed=3), cv2.COLOR_GRAY2BGR)
+    truth = cam.project(LAYOUT.landmark_centers_mm())
+    # The dissertation's procedure alone (no edge floor, no border-position check, binary
+    # centroids) picks the right group by the largest total edge strength.
+    faithful = DetectParams(min_edge_fraction=0.0, max_border_offset_px=math.inf, refine=False)
+    det = detect_landmarks(img, LAYOUT, faithful)
+    assert det is not None
+    assert np.linalg.norm(det.centers - truth, axis=1).max() < 1.0
+
+
+@pytest.mark.parametrize(("yaw", "pitch", "roll"), VIEWS[:4])
+@pytest.mark.parametrize("hidden", [0, 1, 2, 3])
+def test_three_landmarks_give_no_lock(yaw, pitch, roll, hidden):
+    cam = oblique_camera(yaw, pitch_deg=pitch, roll_deg=roll)
+    assert detect_landmarks(render(cam, hide=(hidden,), seed=hidden), LAYOUT) is None
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_no_monitor_or_no_landmarks_give_no_lock(seed):
+    cam = oblique_camera(20, roll_deg=5)
+    assert detect_landmarks(render(cam, monitor=False, seed=seed), LAYOUT) is None
+    assert detect_landmarks(render(cam, hide=(0, 1, 2, 3), seed=seed), LAYOUT) is None
+    blank = np.full((240, 320), 200, np.uint8)
+    assert detect_landmarks(blank, LAYOUT) is None
+
+
+def test_order_corners_under_rotation():
+    sq = np.array([[-2.0, -1.0], [2.0, -1.0], [2.0, 1.0], [-2.0, 1.0]])
+    for deg in (-40, -20, 0, 20, 40):
+        a = math.radians(deg)
+        R = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+        pts = sq @ R.T
+        shuffled = pts[[2, 0, 3, 1]]
+        assert np.array_equal(order_corners(shuffled), pts)
