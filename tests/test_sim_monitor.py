@@ -176,3 +176,37 @@ def test_fixture_writer(tmp_path: Path) -> None:
     with pytest.raises(OutputError, match="trajectory"):
         make_mouse_fixture(tmp_path / "x", trajectory="loop")
     assert not (tmp_path / ".mouse.tmp").exists() and not (tmp_path / "x").exists()
+
+
+def test_no_false_lock_variants_have_what_they_say() -> None:
+    cam = HandCamera.default(320, 240)
+    pose = trajectory_pose("drift", 0.0)
+    normal = render_pose(cam, MonitorScene(0, content=False), pose, 0.0, supersample=2)
+    three = render_pose(
+        cam, MonitorScene(0, content=False, variant="three-landmarks"), pose, 0.0, supersample=2
+    )
+    empty = render_pose(cam, MonitorScene(0, variant="no-monitor"), pose, 0.0, supersample=2)
+    truth = frame_truth(cam, pose)
+    t3 = frame_truth(cam, pose, variant="three-landmarks")
+    t0 = frame_truth(cam, pose, variant="no-monitor")
+    assert truth.visible == [True] * 4 and t3.visible == [True, True, True, False]
+    assert t3.landmarks_uv[3] is None and t3.screen_xy == truth.screen_xy
+    assert t0.visible == [False] * 4 and t0.screen_xy is None and not t0.on_screen
+    # only bottom_left's square differs between normal and three-landmarks
+    lab = landmark_labels(cam, pose)
+    diff = np.abs(normal - three).max(axis=2) > 1.0
+    assert diff.any() and np.all(lab[diff] == 3)
+    assert np.all(landmark_labels(cam, pose, "three-landmarks") != 3)
+    # without the monitor no pixel is as dark as a landmark disc
+    assert float(empty.mean(axis=2).min()) > 60.0 and float(normal.mean(axis=2).min()) < 20.0
+    with pytest.raises(OutputError, match="scene"):
+        MonitorScene(0, variant="two")
+
+
+def test_sweep_frames_are_motion_blurred() -> None:
+    cam = HandCamera.default(160, 120)
+    scene = MonitorScene(0, content=False)
+    sharp, _ = render_frame(cam, scene, "sweep", 0, blur_samples=1, supersample=2, noise_sigma=0)
+    blurred, _ = render_frame(cam, scene, "sweep", 0, blur_samples=5, supersample=2, noise_sigma=0)
+    grad = [float(np.abs(np.diff(i.astype(float), axis=1)).mean()) for i in (sharp, blurred)]
+    assert grad[1] < 0.9 * grad[0]

@@ -59,6 +59,8 @@ LANDMARK_OFFSETS = (
 )
 SCREEN_CORNERS = ((0.0, 0.0), (SCREEN_W, 0.0), (SCREEN_W, SCREEN_H), (0.0, SCREEN_H))
 TRAJECTORIES = ("drift", "sweep", "roll", "oblique", "partial")
+# Scenes: the full monitor; the wall alone; the monitor with bottom_left's landmark removed.
+VARIANTS = ("normal", "no-monitor", "three-landmarks")
 SCREEN_CENTER = np.array([SCREEN_W / 2, SCREEN_H / 2, 0.0])
 
 
@@ -155,9 +157,17 @@ def screen_point(pose: Pose) -> FloatArray | None:
     return out
 
 
-def frame_truth(cam: HandCamera, pose: Pose, index: int = 0, t: float = 0.0) -> MouseTruth:
-    """Compute :class:`MouseTruth` for one pose."""
-    p = screen_point(pose)
+def frame_truth(
+    cam: HandCamera, pose: Pose, index: int = 0, t: float = 0.0, *, variant: str = "normal"
+) -> MouseTruth:
+    """Compute :class:`MouseTruth` for one pose in a scene of ``variant`` (VARIANTS).
+
+    "no-monitor": no screen point and no landmark. "three-landmarks": the
+    screen point is the physical one (a tracker should still give no cursor);
+    bottom_left has no position and is not visible.
+    """
+    present = landmarks_present(variant)
+    p = screen_point(pose) if variant != "no-monitor" else None
     xy: tuple[float, float] | None = None
     px: tuple[float, float] | None = None
     on = False
@@ -192,26 +202,45 @@ def frame_truth(cam: HandCamera, pose: Pose, index: int = 0, t: float = 0.0) -> 
         screen_px=px,
         on_screen=on,
         landmarks_uv=[
-            (float(a), float(b)) if f else None for (a, b), f in zip(uv, front, strict=True)
+            (float(a), float(b)) if f and q else None
+            for (a, b), f, q in zip(uv, front, present, strict=True)
         ],
-        visible=visible,
+        visible=[v and q for v, q in zip(visible, present, strict=True)],
         view_angle_deg=math.degrees(math.acos(min(1.0, abs(float(axis[2]))))),
         camera_center=(float(pose.C[0]), float(pose.C[1]), float(pose.C[2])),
         rotation=pose.R.tolist(),
     )
 
 
-class MonitorScene:
-    """The monitor (bezel, landmarks, screen content) and the wall, from a seed."""
+def landmarks_present(variant: str) -> tuple[bool, bool, bool, bool]:
+    """Which landmarks (LANDMARK_NAMES order) scene ``variant`` has."""
+    if variant not in VARIANTS:
+        raise OutputError(f"unknown camera-mouse scene {variant!r} ({', '.join(VARIANTS)})")
+    if variant == "no-monitor":
+        return (False, False, False, False)
+    return (True, True, True, variant != "three-landmarks")
 
-    def __init__(self, seed: int = 0, *, content: bool = True) -> None:
+
+class MonitorScene:
+    """The monitor (bezel, landmarks, screen content) and the wall, from a seed.
+
+    ``content=False`` shows a flat grey screen; ``variant`` (VARIANTS) removes
+    the monitor or one landmark (the no-false-lock fixtures).
+    """
+
+    def __init__(self, seed: int = 0, *, content: bool = True, variant: str = "normal") -> None:
         self.seed = seed
         self.content = content
+        self.variant = variant
+        self.present = landmarks_present(variant)
         rng = np.random.default_rng(seed)
         tw = round((SCREEN_W + 2 * BEZEL) / TEXEL)
         th = round((SCREEN_H + 2 * BEZEL) / TEXEL)
         base = np.full((th, tw, 3), BEZEL_GREY, np.float32)
-        for (cx, cy), (ox, oy) in zip(SCREEN_CORNERS, LANDMARK_OFFSETS, strict=True):
+        corners = zip(SCREEN_CORNERS, LANDMARK_OFFSETS, self.present, strict=True)
+        for (cx, cy), (ox, oy), here in corners:
+            if not here:
+                continue
             u, v = self._texel(cx + ox, cy + oy)
             hs = LANDMARK_SQUARE / 2 / TEXEL
             cv2.rectangle(
@@ -345,7 +374,12 @@ def render_pose(
     tex = scene.monitor_texture(t) if texture is None else texture
     mx, my, mok = _plane_hits(rays, pose, 0.0)
     inside = (
-        mok & (mx >= -BEZEL) & (mx <= SCREEN_W + BEZEL) & (my >= -BEZEL) & (my <= SCREEN_H + BEZEL)
+        (scene.variant != "no-monitor")
+        & mok
+        & (mx >= -BEZEL)
+        & (mx <= SCREEN_W + BEZEL)
+        & (my >= -BEZEL)
+        & (my <= SCREEN_H + BEZEL)
     )
     mu = ((mx + BEZEL) / TEXEL - 0.5).astype(np.float32)
     mv = ((my + BEZEL) / TEXEL - 0.5).astype(np.float32)
@@ -363,13 +397,16 @@ def render_pose(
     return out
 
 
-def landmark_labels(cam: HandCamera, pose: Pose) -> NDArray[np.int8]:
+def landmark_labels(cam: HandCamera, pose: Pose, variant: str = "normal") -> NDArray[np.int8]:
     """Per pixel (H, W): which landmark's white square its centre sees (0..3), else -1."""
+    present = landmarks_present(variant)
     rays = _sample_rays(cam, 1)
     x, y, ok = _plane_hits(rays, pose, 0.0)
     lab = np.full((cam.height, cam.width), -1, np.int8)
     h = LANDMARK_SQUARE / 2
     for k, c in enumerate(landmark_centers()):
+        if not present[k]:
+            continue
         lab[ok & (np.abs(x - c[0]) <= h) & (np.abs(y - c[1]) <= h)] = k
     return lab
 
@@ -409,7 +446,7 @@ def render_frame(
         rng = np.random.default_rng([seed, index])
         img = img * (1.0 + rng.normal(0, 0.02)) + rng.normal(0, noise_sigma, img.shape)
     frame = np.clip(img + 0.5, 0, 255).astype(np.uint8)
-    return frame, frame_truth(cam, trajectory_pose(trajectory, t), index, t)
+    return frame, frame_truth(cam, trajectory_pose(trajectory, t), index, t, variant=scene.variant)
 
 
 def make_mouse_fixture(
@@ -420,6 +457,7 @@ def make_mouse_fixture(
     frames: int = 60,
     fps: float = 30.0,
     seed: int = 0,
+    variant: str = "normal",
     force: bool = False,
 ) -> dict[str, Any]:
     """Render a camera-mouse fixture folder atomically; returns what truth.json holds.
@@ -436,7 +474,8 @@ def make_mouse_fixture(
     if outdir.exists() and any(outdir.iterdir()) and not force:
         raise OutputError(f"{outdir} exists and is not empty; pass --force to overwrite")
     cam = HandCamera.default(*size)
-    scene = MonitorScene(seed)
+    landmarks_present(variant)
+    scene = MonitorScene(seed, variant=variant)
     tmp = outdir.with_name(f".{outdir.name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
@@ -480,6 +519,7 @@ def make_mouse_fixture(
                 "disc_radius_m": LANDMARK_RADIUS,
             },
             "trajectory": trajectory,
+            "scene": variant,
             "frames": frames,
             "fps": fps,
             "seed": seed,
@@ -493,7 +533,7 @@ def make_mouse_fixture(
             "per_frame": per_frame,
             "regenerate": f"omnidev sim mouse {outdir} --trajectory {trajectory} "
             f"--size {size[0]}x{size[1]} "
-            f"--frames {frames} --fps {fps:g} --seed {seed} --force",
+            f"--frames {frames} --fps {fps:g} --seed {seed} --scene {variant} --force",
         }
         (tmp / "truth.json").write_text(json.dumps(doc, indent=1) + "\n")
         if outdir.exists():
