@@ -126,10 +126,20 @@ def to_gray(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
 def find_dark_regions(
     gray: NDArray[np.uint8], params: DetectParams = DetectParams()
 ) -> NDArray[np.float64]:
-    """Steps 1-3: centers (n, 2) of the dark regions shaped like landmark circles.
+    """Steps 1-3: centers (n, 2) of the dark regions shaped like landmark circles
+    (refined when ``params.refine``). The largest ``params.max_regions`` regions are kept,
+    largest first."""
+    centers, labels, stats, ids = _regions(gray, params)
+    if params.refine:
+        for k, i in enumerate(ids):
+            centers[k] = _weighted_centroid(gray, stats[i], labels, i)
+    return centers
 
-    The largest ``params.max_regions`` regions are kept, largest first.
-    """
+
+def _regions(
+    gray: NDArray[np.uint8], params: DetectParams
+) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int32], list[int]]:
+    """Steps 1-3: binary centroids (n, 2), the label image, the stats and the labels kept."""
     dark = (gray < params.threshold).astype(np.uint8)
     n, labels, stats, centroids = cv2.connectedComponentsWithStats(dark, connectivity=8)
     keep: list[tuple[int, int]] = []
@@ -145,17 +155,13 @@ def find_dark_regions(
         keep.append((area, i))
     keep.sort(reverse=True)
     keep = keep[: params.max_regions]
-    out = np.empty((len(keep), 2))
-    for k, (_, i) in enumerate(keep):
-        if params.refine:
-            out[k] = _weighted_centroid(gray, stats[i], labels == i)
-        else:
-            out[k] = centroids[i]
-    return out
+    ids = [i for _, i in keep]
+    out = np.array(centroids[ids], dtype=np.float64).reshape(len(ids), 2)
+    return out, np.asarray(labels, np.int32), np.asarray(stats, np.int32), ids
 
 
 def _weighted_centroid(
-    gray: NDArray[np.uint8], stat: NDArray[np.int32], mask: NDArray[np.bool_]
+    gray: NDArray[np.uint8], stat: NDArray[np.int32], labels: NDArray[np.int32], label: int
 ) -> NDArray[np.float64]:
     """Darkness-weighted centroid over the region's box grown by 2 pixels; darkness is
     scaled between the box's brightest level (0) and the region's mean level (1)."""
@@ -163,14 +169,15 @@ def _weighted_centroid(
     x0, y0 = max(0, x - 2), max(0, y - 2)
     x1, y1 = min(gray.shape[1], x + w + 2), min(gray.shape[0], y + h + 2)
     patch = gray[y0:y1, x0:x1].astype(np.float64)
-    inner = patch[mask[y0:y1, x0:x1]]
-    lo, hi = float(np.median(inner)), float(patch.max())
+    mask = labels[y0:y1, x0:x1] == label
+    inner = patch[mask]
+    lo, hi = float(inner.mean()), float(patch.max())
     if hi - lo < 1.0:
-        ys, xs = np.nonzero(mask[y0:y1, x0:x1])
+        ys, xs = np.nonzero(mask)
         return np.array([xs.mean() + x0, ys.mean() + y0])
     wgt = np.clip((hi - patch) / (hi - lo), 0.0, 1.0)
     # Pixels not connected to the region (a neighbour's darkness) are left out.
-    grown = cv2.dilate(mask[y0:y1, x0:x1].astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    grown = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
     wgt = wgt * grown
     ys, xs = np.mgrid[y0:y1, x0:x1]
     s = wgt.sum()
@@ -178,41 +185,63 @@ def _weighted_centroid(
 
 
 def order_corners(points: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Four points ordered TL, TR, BR, BL: clockwise (y down) by angle about their mean,
-    starting from the one whose direction from the mean is nearest to up-left (-135 deg)."""
+    """Four points (4, 2) ordered TL, TR, BR, BL: clockwise (y down) by angle about their
+    mean, starting from the one whose direction from the mean is nearest to up-left
+    (-135 deg). Also takes a stack (m, 4, 2) of groups."""
     p = np.asarray(points, dtype=np.float64)
-    d = p - p.mean(axis=0)
-    ang = np.arctan2(d[:, 1], d[:, 0])
-    order = np.argsort(ang)
-    start = int(np.argmin(np.abs(np.angle(np.exp(1j * (ang[order] + 3 * math.pi / 4))))))
-    return p[np.roll(order, -start)]
+    return p if p.size == 0 else _order_batch(p.reshape(-1, 4, 2)).reshape(p.shape)
+
+
+def _order_batch(p: NDArray[np.float64]) -> NDArray[np.float64]:
+    idx = _order_batch_index(p)
+    return np.take_along_axis(p, idx[..., None], axis=1)
+
+
+def _order_batch_index(p: NDArray[np.float64]) -> NDArray[np.intp]:
+    """(m, 4) permutations putting each group of (m, 4, 2) in TL, TR, BR, BL order."""
+    d = p - p.mean(axis=1, keepdims=True)
+    ang = np.arctan2(d[..., 1], d[..., 0])  # (m, 4)
+    order = np.argsort(ang, axis=1)
+    ang_sorted = np.take_along_axis(ang, order, axis=1)
+    # Angular distance of each sorted point's direction from -135 degrees.
+    off = np.abs((ang_sorted + 3 * math.pi / 4 + math.pi) % (2 * math.pi) - math.pi)
+    start = np.argmin(off, axis=1)
+    idx = np.take_along_axis(order, (start[:, None] + np.arange(4)[None, :]) % 4, axis=1)
+    return np.asarray(idx, dtype=np.intp)
 
 
 def shape_checks(
     quad: NDArray[np.float64], expected_aspect: float, params: DetectParams = DetectParams()
 ) -> bool:
-    """Step 4 (a, b, c) on an ordered quadrilateral C1..C4 (TL, TR, BR, BL)."""
-    d = np.linalg.norm(quad - np.roll(quad, -1, axis=0), axis=1)  # C1C2, C2C3, C3C4, C4C1
-    if d.min() <= 1e-9:
-        return False
+    """Step 4 (a, b, c) on an ordered quadrilateral C1..C4 (TL, TR, BR, BL), (4, 2) pixels."""
+    q = np.asarray(quad, dtype=np.float64).reshape(1, 4, 2)
+    return bool(_shape_checks_batch(q, expected_aspect, params)[0])
+
+
+def _shape_checks_batch(
+    q: NDArray[np.float64], expected_aspect: float, params: DetectParams
+) -> NDArray[np.bool_]:
+    """Step 4 on a stack (m, 4, 2) of ordered quadrilaterals: (m,) passes."""
+    e = np.roll(q, -1, axis=1) - q  # edges C1C2, C2C3, C3C4, C4C1
+    d = np.hypot(e[..., 0], e[..., 1])  # (m, 4)
+    ok = d.min(axis=1) > 1e-9
+    dd = np.where(d > 1e-9, d, 1.0)
     # (a) opposite sides roughly equal: |C1-C2| ~ |C3-C4|, |C1-C4| ~ |C2-C3|.
-    if max(d[0], d[2]) > params.max_side_ratio * min(d[0], d[2]):
-        return False
-    if max(d[1], d[3]) > params.max_side_ratio * min(d[1], d[3]):
-        return False
-    # (b) four roughly right angles (and a convex, clockwise quadrilateral).
-    cos_max = math.sin(math.radians(params.max_angle_error_deg))
-    for i in range(4):
-        a = quad[i - 1] - quad[i]
-        b = quad[(i + 1) % 4] - quad[i]
-        if abs(float(a @ b)) / (np.linalg.norm(a) * np.linalg.norm(b)) > cos_max:
-            return False
-        e1, e2 = quad[i] - quad[i - 1], quad[(i + 1) % 4] - quad[i]
-        if e1[0] * e2[1] - e1[1] * e2[0] <= 0:
-            return False
+    r = params.max_side_ratio
+    ok &= np.maximum(dd[:, 0], dd[:, 2]) <= r * np.minimum(dd[:, 0], dd[:, 2])
+    ok &= np.maximum(dd[:, 1], dd[:, 3]) <= r * np.minimum(dd[:, 1], dd[:, 3])
+    # (b) four roughly right angles: |cos| of each corner angle (between the incoming and
+    # the outgoing edge) small, and a convex clockwise quadrilateral (all turns positive).
+    prev = np.roll(e, 1, axis=1)
+    dprev = np.roll(dd, 1, axis=1)
+    cos = np.abs((prev * e).sum(axis=2)) / (dprev * dd)
+    ok &= (cos <= math.sin(math.radians(params.max_angle_error_deg))).all(axis=1)
+    cross = prev[..., 0] * e[..., 1] - prev[..., 1] * e[..., 0]
+    ok &= (cross > 0).all(axis=1)
     # (c) R = ((|C1-C2| + |C3-C4|)/2) / ((|C1-C4| + |C2-C3|)/2) near the layout's ratio.
-    R = (d[0] + d[2]) / (d[1] + d[3])
-    return bool(abs(R / expected_aspect - 1.0) <= params.max_aspect_error)
+    R = (dd[:, 0] + dd[:, 2]) / (dd[:, 1] + dd[:, 3])
+    ok &= np.abs(R / expected_aspect - 1.0) <= params.max_aspect_error
+    return np.asarray(ok, dtype=np.bool_)
 
 
 def side_edge_strength(
@@ -269,9 +298,8 @@ def side_edge_strength(
     bins = np.floor(rho + 0.5).astype(np.int64)
     lo = int(bins.min())
     nb = int(bins.max()) - lo + 1
-    acc = np.zeros((phis.size, nb), np.int64)
-    rows = np.broadcast_to(np.arange(phis.size)[:, None], bins.shape)
-    np.add.at(acc, (rows.ravel(), (bins - lo).ravel()), 1)
+    flat = (bins - lo) + (np.arange(phis.size) * nb)[:, None]
+    acc = np.bincount(flat.ravel(), minlength=phis.size * nb).reshape(phis.size, nb)
     # A digital 1-pixel line spreads over two neighbouring 1-pixel rho bins: the peak is
     # taken over pairs of bins (a 2-pixel wide line).
     centre = 0.0
@@ -295,15 +323,17 @@ def detect_landmarks(
     with fewer than four landmark-like blobs).
     """
     gray = to_gray(image)
-    centers = find_dark_regions(gray, params)
+    centers, labels, stats, ids = _regions(gray, params)
     if len(centers) < 4:
         return None
     expected = layout.landmark_aspect_ratio()
-    candidates: list[NDArray[np.float64]] = []
-    for idx in itertools.combinations(range(len(centers)), 4):
-        quad = order_corners(centers[list(idx)])
-        if shape_checks(quad, expected, params):
-            candidates.append(quad)
+    # Step 4, exhaustively: every group of four regions, vectorized over the groups.
+    groups = np.array(list(itertools.combinations(range(len(centers)), 4)), dtype=np.intp)
+    perm = _order_batch_index(centers[groups])
+    groups = np.take_along_axis(groups, perm, axis=1)
+    quads = centers[groups]
+    passed = _shape_checks_batch(quads, expected, params)
+    candidates, cand_groups = list(quads[passed]), list(groups[passed])
     if not candidates:
         return None
     edges = np.asarray(cv2.Canny(gray, 50, 150), dtype=np.uint8)
@@ -316,7 +346,8 @@ def detect_landmarks(
         for i in range(4)
     ]
     best: Detection | None = None
-    for quad in candidates:
+    best_group: NDArray[np.intp] | None = None
+    for quad, group in zip(candidates, cand_groups, strict=True):
         strengths: list[float] = []
         ok = True
         screen = screen_corners_from_landmarks(quad, layout)
@@ -329,7 +360,9 @@ def detect_landmarks(
                 ok = False
             elif line is not None and math.isfinite(params.max_border_offset_px):
                 off = line.distance(screen[[i, (i + 1) % 4]])
-                ok = ok and bool(off.max() <= params.max_border_offset_px)
+                ok = bool(off.max() <= params.max_border_offset_px)
+            if not ok:
+                break
             strengths.append(e)
         if not ok:
             continue
@@ -342,7 +375,20 @@ def detect_landmarks(
                 (strengths[0], strengths[1], strengths[2], strengths[3]),
                 len(candidates),
             )
-    return best
+            best_group = group
+    if best is None or best_group is None or not params.refine:
+        return best
+    # Sub-pixel centers of the chosen four only, and the screen corners they predict.
+    refined = np.array(
+        [_weighted_centroid(gray, stats[ids[k]], labels, ids[k]) for k in best_group]
+    )
+    return Detection(
+        refined,
+        screen_corners_from_landmarks(refined, layout),
+        best.strength,
+        best.side_strengths,
+        best.candidates,
+    )
 
 
 def _inset(
