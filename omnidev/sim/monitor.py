@@ -344,6 +344,17 @@ def _sample_rays(cam: HandCamera, supersample: int) -> FloatArray:
     return _GRIDS[key]
 
 
+_GRIDS32: dict[tuple[HandCamera, int], NDArray[np.float32]] = {}
+
+
+def _sample_rays32(cam: HandCamera, supersample: int) -> NDArray[np.float32]:
+    """:func:`_sample_rays` in float32 (for the per-frame texture maps), cached."""
+    key = (cam, supersample)
+    if key not in _GRIDS32:
+        _GRIDS32[key] = np.ascontiguousarray(_sample_rays(cam, supersample), np.float32)
+    return _GRIDS32[key]
+
+
 def _plane_hits(
     rays: FloatArray, pose: Pose, z: float
 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
@@ -355,6 +366,36 @@ def _plane_hits(
     X = pose.C[0] + s * (R[0, 0] * x + R[1, 0] * y + R[2, 0])
     Y = pose.C[1] + s * (R[0, 1] * x + R[1, 1] * y + R[2, 1])
     return X, Y, s > 0
+
+
+def _plane_homography(pose: Pose, z: float, origin: float, texel: float) -> FloatArray:
+    """3x3 map from camera rays (x, y, 1) to texture (u, v, w) on the plane z.
+
+    Texture coordinates are ((X - origin) / texel - 0.5, (Y - origin) / texel - 0.5)
+    for the world point (X, Y, z) on the ray; w > 0 exactly when that point is
+    in front of the camera.
+    """
+    R, C = pose.R, pose.C
+    dz = z - C[2]
+    world = np.stack([dz * R[:, 0] + C[0] * R[:, 2], dz * R[:, 1] + C[1] * R[:, 2], R[:, 2]])
+    world *= 1.0 if dz > 0 else -1.0
+    tex = np.array([[1 / texel, 0, -origin / texel - 0.5], [0, 1 / texel, -origin / texel - 0.5]])
+    out: FloatArray = np.vstack([tex @ world, world[2:]])
+    return out
+
+
+def _texture_maps(
+    rays: NDArray[np.float32], H: FloatArray
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.bool_]]:
+    """Texture maps (u, v) for cv2.remap and the in-front mask, in float32."""
+    x, y = rays[..., 0], rays[..., 1]
+    h = [[float(c) for c in row] for row in H]
+    w = h[2][0] * x + h[2][1] * y + h[2][2]
+    front = w > 0
+    inv = 1.0 / np.where(front, w, np.float32(1.0))
+    u = (h[0][0] * x + h[0][1] * y + h[0][2]) * inv
+    v = (h[1][0] * x + h[1][1] * y + h[1][2]) * inv
+    return u.astype(np.float32, copy=False), v.astype(np.float32, copy=False), front
 
 
 def render_pose(
@@ -370,27 +411,19 @@ def render_pose(
 
     ``texture``: the monitor texture of time t if already made.
     """
-    rays = _sample_rays(cam, supersample)
     tex = scene.monitor_texture(t) if texture is None else texture
-    mx, my, mok = _plane_hits(rays, pose, 0.0)
-    inside = (
-        (scene.variant != "no-monitor")
-        & mok
-        & (mx >= -BEZEL)
-        & (mx <= SCREEN_W + BEZEL)
-        & (my >= -BEZEL)
-        & (my <= SCREEN_H + BEZEL)
-    )
-    mu = ((mx + BEZEL) / TEXEL - 0.5).astype(np.float32)
-    mv = ((my + BEZEL) / TEXEL - 0.5).astype(np.float32)
-    mon = cv2.remap(tex, mu, mv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    wx, wy, wok = _plane_hits(rays, pose, WALL_Z)
-    n = scene.wall.shape[0]
-    wu = np.mod(wx / WALL_TEXEL, n).astype(np.float32)
-    wv = np.mod(wy / WALL_TEXEL, n).astype(np.float32)
-    wall = cv2.remap(scene.wall, wu, wv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
-    wall[~wok] = 60.0
-    img = np.where(inside[..., None], mon, wall).astype(np.float32)
+    rays32 = _sample_rays32(cam, supersample)
+    wu, wv, wok = _texture_maps(rays32, _plane_homography(pose, WALL_Z, 0.0, WALL_TEXEL))
+    # the wall texture tiles; BORDER_WRAP repeats it (coordinates stay small in float32)
+    img = cv2.remap(scene.wall, wu, wv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+    if not wok.all():
+        img[~wok] = 60.0
+    if scene.variant != "no-monitor":
+        mu, mv, mok = _texture_maps(rays32, _plane_homography(pose, 0.0, -BEZEL, TEXEL))
+        th, tw = tex.shape[:2]
+        inside = mok & (mu >= -0.5) & (mu <= tw - 0.5) & (mv >= -0.5) & (mv <= th - 0.5)
+        mon = cv2.remap(tex, mu, mv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        np.copyto(img, mon, where=inside[..., None])
     out: FloatArray = cv2.resize(img, (cam.width, cam.height), interpolation=cv2.INTER_AREA).astype(
         np.float64
     )
