@@ -72,3 +72,30 @@ def test_order_corners_under_rotation():
         pts = sq @ R.T
         shuffled = pts[[2, 0, 3, 1]]
         assert np.array_equal(order_corners(shuffled), pts)
+
+
+def _random_views(n, seed=42):
+    """Random hand-held poses (yaw +-45, pitch +-20, roll +-30 deg, 0.7-1.1 m) with all four
+    landmarks inside the 640x480 picture."""
+    rng = np.random.default_rng(seed)
+    views = []
+    while len(views) < n:
+        yaw, pitch, roll = rng.uniform(-45, 45), rng.uniform(-20, 20), rng.uniform(-30, 30)
+        dist, aim = rng.uniform(700, 1100), rng.uniform([0.3, 0.3], [0.7, 0.7])
+        cam = oblique_camera(yaw, pitch_deg=pitch, roll_deg=roll, dist=dist, aim=tuple(aim))
+        truth = cam.project(LAYOUT.landmark_centers_mm())
+        if (truth >= 8).all() and (truth[:, 0] <= 632).all() and (truth[:, 1] <= 472).all():
+            views.append((cam, truth))
+    return views
+
+
+def test_random_hand_held_views():
+    errs, false_locks = [], 0
+    for k, (cam, truth) in enumerate(_random_views(12)):
+        det = detect_landmarks(render(cam, seed=100 + k), LAYOUT)
+        assert det is not None, k
+        errs.append(np.linalg.norm(det.centers - truth, axis=1).max())
+        false_locks += detect_landmarks(render(cam, seed=k, hide=(k % 4,)), LAYOUT) is not None
+        false_locks += detect_landmarks(render(cam, seed=k, monitor=False), LAYOUT) is not None
+    assert max(errs) < 0.5, errs
+    assert false_locks == 0
