@@ -27,6 +27,28 @@ def register(sub: Any) -> None:
     b.add_argument("--seed", type=int, default=0)
     b.add_argument("--force", action="store_true", help="replace an existing folder")
     b.set_defaults(func=run_blob)
+    m = ssub.add_parser(
+        "mouse", help="a hand-held camera filming a monitor with corner landmarks, with truth"
+    )
+    m.add_argument("outdir", type=Path)
+    m.add_argument(
+        "--trajectory",
+        default="drift",
+        choices=("drift", "sweep", "roll", "oblique", "partial"),
+        help="how the hand moves the camera",
+    )
+    m.add_argument(
+        "--scene",
+        default="normal",
+        choices=("normal", "no-monitor", "three-landmarks"),
+        help="what is in front of the camera (the last two must produce no cursor)",
+    )
+    m.add_argument("--size", default="640x480", metavar="WxH")
+    m.add_argument("--frames", type=int, default=60)
+    m.add_argument("--fps", type=float, default=30.0)
+    m.add_argument("--seed", type=int, default=0)
+    m.add_argument("--force", action="store_true", help="replace an existing folder")
+    m.set_defaults(func=run_mouse)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,6 +61,38 @@ def run(args: argparse.Namespace) -> int:
         fps=args.fps,
         seed=args.seed,
         camera=args.camera,
+        force=args.force,
+    )
+    print(f"wrote {args.outdir}/")
+    return 0
+
+
+def _size(text: str) -> tuple[int, int]:
+    from omnidev.errors import OmnidevError
+
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise OmnidevError(f"--size {text!r} is not WxH") from None
+    if w < 64 or h < 64:
+        raise OmnidevError(f"--size {text!r}: at least 64x64")
+    return w, h
+
+
+def run_mouse(args: argparse.Namespace) -> int:
+    from omnidev.errors import OmnidevError
+    from omnidev.sim.monitor import make_mouse_fixture
+
+    if args.frames < 1 or args.fps <= 0:
+        raise OmnidevError("--frames must be >= 1 and --fps > 0")
+    make_mouse_fixture(
+        args.outdir,
+        trajectory=args.trajectory,
+        size=_size(args.size),
+        frames=args.frames,
+        fps=args.fps,
+        seed=args.seed,
+        variant=args.scene,
         force=args.force,
     )
     print(f"wrote {args.outdir}/")
