@@ -19,7 +19,11 @@ darkness-weighted centroid; each side's edge strength must reach ``min_edge_frac
 of the searched border length, so dark blobs with no screen border between them do not
 lock; and the border line found by the Hough transform must pass through the screen
 corners that the group predicts (:func:`omnidev.mouse.geometry.screen_corners_from_landmarks`),
-so a stray blob next to a missing landmark does not complete a group with the other three.
+so a stray blob next to a missing landmark does not complete a group with the other three;
+and the four regions' areas must agree with the disc areas that the group's own
+homography predicts (``max_area_spread``).
+A group is kept when at least ``min_border_sides`` of its four sides show a border line
+above the floor and no side shows one off the predicted position.
 
 All positions are image pixels (x right, y down, origin at the center of the top-left pixel).
 """
@@ -34,7 +38,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from omnidev.mouse.geometry import screen_corners_from_landmarks
+from omnidev.mouse.geometry import homography_from_4_points, screen_corners_from_landmarks
 from omnidev.mouse.landmarks import LandmarkLayout
 
 
@@ -59,6 +63,15 @@ class DetectParams:
         max_border_offset_px: the Hough peak line of each side must pass within this
             many pixels of both screen corners predicted from the group's landmarks and
             the layout (inf turns the check off, as in the dissertation).
+        min_border_sides: a group is kept when at least this many of its sides show a
+            border line above the edge floor (screen content as dark as the bezel can hide
+            one side's border), and none shows one off the predicted position (a stray
+            blob standing in for a missing landmark misplaces the sides it touches).
+        max_area_spread: each region's area over the area the group's homography predicts
+            for a landmark disc there; the largest of the four ratios over the smallest
+            must not exceed this (inf turns the check off, as in the dissertation).
+        canny_low, canny_high: hysteresis thresholds of the Canny edge map voting in the
+            Hough transform (grey levels of the Sobel gradient).
         refine: refine centers by the darkness-weighted centroid (else binary centroid).
     """
 
@@ -75,6 +88,10 @@ class DetectParams:
     end_margin: float = 0.2
     min_edge_fraction: float = 0.5
     max_border_offset_px: float = 3.0
+    min_border_sides: int = 3
+    max_area_spread: float = 1.3
+    canny_low: float = 30.0
+    canny_high: float = 90.0
     refine: bool = True
 
 
@@ -336,7 +353,7 @@ def detect_landmarks(
     candidates, cand_groups = list(quads[passed]), list(groups[passed])
     if not candidates:
         return None
-    edges = np.asarray(cv2.Canny(gray, 50, 150), dtype=np.uint8)
+    edges = np.asarray(cv2.Canny(gray, params.canny_low, params.canny_high), dtype=np.uint8)
     # Inward distance of the screen border from each landmark side, in mm (monitor plane).
     lm = layout.landmark_centers_mm()
     sc = layout.screen_corners_mm()
@@ -345,11 +362,18 @@ def detect_landmarks(
         _inset(lm[i], lm[(i + 1) % 4], sc[i], sc[(i + 1) % 4], layout.square_side_mm)
         for i in range(4)
     ]
+    areas = np.array([float(stats[i][4]) for i in ids])
+    disc_mm2 = math.pi * (layout.circle_diameter_mm / 2.0) ** 2
     best: Detection | None = None
     best_group: NDArray[np.intp] | None = None
     for quad, group in zip(candidates, cand_groups, strict=True):
+        if math.isfinite(params.max_area_spread):
+            ratio = areas[group] / (disc_mm2 * _area_scale(layout.landmark_centers_mm(), quad))
+            if ratio.max() > params.max_area_spread * ratio.min():
+                continue
         strengths: list[float] = []
-        ok = True
+        weak = 0
+        misplaced = False
         screen = screen_corners_from_landmarks(quad, layout)
         for i in range(4):
             p, q = quad[i], quad[(i + 1) % 4]
@@ -357,14 +381,14 @@ def detect_landmarks(
             depth = max(4.0, 2.0 * inset_mm[i] * px_per_mm)
             e, span, line = side_edge_strength(edges, p, q, depth, params)
             if e < params.min_edge_fraction * span:
-                ok = False
+                weak += 1  # no clear border here (content as dark as the bezel): no vote
             elif line is not None and math.isfinite(params.max_border_offset_px):
                 off = line.distance(screen[[i, (i + 1) % 4]])
-                ok = bool(off.max() <= params.max_border_offset_px)
-            if not ok:
+                misplaced = bool(off.max() > params.max_border_offset_px)
+            if misplaced or weak > 4 - params.min_border_sides:
                 break
             strengths.append(e)
-        if not ok:
+        if misplaced or weak > 4 - params.min_border_sides:
             continue
         total = float(sum(strengths))
         if best is None or total > best.strength:
@@ -389,6 +413,21 @@ def detect_landmarks(
         best.side_strengths,
         best.candidates,
     )
+
+
+def _area_scale(
+    plane_mm: NDArray[np.float64], image_px: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Image pixels per plane mm^2 at each of the four plane points (4, 2) mm, by the
+    Jacobian determinant of the homography taking them to ``image_px`` (4, 2)."""
+    Hm = homography_from_4_points(plane_mm, image_px)
+    v = np.column_stack([plane_mm, np.ones(4)]) @ Hm.T  # (4, 3) homogeneous image points
+    w = v[:, 2]
+    out = np.empty(4)
+    for k in range(4):
+        J = (Hm[:2, :2] * w[k] - np.outer(v[k, :2], Hm[2, :2])) / w[k] ** 2
+        out[k] = abs(np.linalg.det(J))
+    return out
 
 
 def _inset(

@@ -116,10 +116,12 @@ def homography_image_to_screen(corners_px: ArrayLike) -> NDArray[np.float64]:
     transform, in float64); exact for a planar screen under perspective.
     """
     c = _corners(corners_px)
-    return _homography(c, _UNIT_SQUARE)
+    return homography_from_4_points(c, _UNIT_SQUARE)
 
 
-def _homography(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[np.float64]:
+def homography_from_4_points(
+    src: NDArray[np.float64], dst: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Exact 4-point homography src -> dst by the 8x8 DLT system (h33 = 1), float64."""
     A = np.zeros((8, 8))
     b = np.zeros(8)
@@ -174,7 +176,7 @@ def screen_corners_from_landmarks(
     screen corners (mm) back into the image, exactly under perspective.
     """
     c = _corners(landmark_centers_px)
-    H_plane_to_image = _homography(layout.landmark_centers_mm(), c)
+    H_plane_to_image = homography_from_4_points(layout.landmark_centers_mm(), c)
     return apply_homography(H_plane_to_image, layout.screen_corners_mm())
 
 
