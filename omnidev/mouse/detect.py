@@ -60,9 +60,11 @@ class DetectParams:
             white squares are there).
         min_edge_fraction: each side's edge strength must reach this fraction of W's
             length (0 turns the check off, as in the dissertation).
-        max_border_offset_px: the Hough peak line of each side must pass within this
-            many pixels of both screen corners predicted from the group's landmarks and
-            the layout (inf turns the check off, as in the dissertation).
+        max_border_offset_px, max_border_offset_frac: the Hough peak line of each side
+            must pass within max(max_border_offset_px, max_border_offset_frac x the
+            landmark-to-border distance in pixels) of both screen corners predicted from
+            the group's landmarks and the layout (motion blur moves the edges found by a
+            few pixels; inf turns the check off, as in the dissertation).
         min_border_sides: a group is kept when at least this many of its sides show a
             border line above the edge floor (screen content as dark as the bezel can hide
             one side's border), and none shows one off the predicted position (a stray
@@ -88,6 +90,7 @@ class DetectParams:
     end_margin: float = 0.2
     min_edge_fraction: float = 0.5
     max_border_offset_px: float = 3.0
+    max_border_offset_frac: float = 0.5
     min_border_sides: int = 3
     max_area_spread: float = 1.3
     canny_low: float = 30.0
@@ -138,6 +141,18 @@ def to_gray(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     if image.ndim != 2:
         raise ValueError(f"expected an (H, W) or (H, W, 3) image, got shape {image.shape}")
     return image
+
+
+def edge_map(image: NDArray[np.uint8], params: DetectParams = DetectParams()) -> NDArray[np.uint8]:
+    """Canny edges (H, W) uint8 (255 = edge) voting in step 6; for a BGR image the union of
+    the three channels' edges, so a border between colours of equal grey still shows."""
+    lo, hi = params.canny_low, params.canny_high
+    if image.ndim == 2:
+        return np.asarray(cv2.Canny(image, lo, hi), dtype=np.uint8)
+    out = np.zeros(image.shape[:2], np.uint8)
+    for ch in cv2.split(image):
+        np.maximum(out, cv2.Canny(ch, lo, hi), out=out)
+    return out
 
 
 def find_dark_regions(
@@ -353,7 +368,7 @@ def detect_landmarks(
     candidates, cand_groups = list(quads[passed]), list(groups[passed])
     if not candidates:
         return None
-    edges = np.asarray(cv2.Canny(gray, params.canny_low, params.canny_high), dtype=np.uint8)
+    edges = edge_map(image, params)
     # Inward distance of the screen border from each landmark side, in mm (monitor plane).
     lm = layout.landmark_centers_mm()
     sc = layout.screen_corners_mm()
@@ -384,7 +399,11 @@ def detect_landmarks(
                 weak += 1  # no clear border here (content as dark as the bezel): no vote
             elif line is not None and math.isfinite(params.max_border_offset_px):
                 off = line.distance(screen[[i, (i + 1) % 4]])
-                misplaced = bool(off.max() > params.max_border_offset_px)
+                tol = max(
+                    params.max_border_offset_px,
+                    params.max_border_offset_frac * inset_mm[i] * px_per_mm,
+                )
+                misplaced = bool(off.max() > tol)
             if misplaced or weak > 4 - params.min_border_sides:
                 break
             strengths.append(e)
