@@ -91,7 +91,8 @@ def cursor_affine(
     corrected rectangle's sides (k = 1/L for u0, 1/H for v0, eqs. 6.3-6.4), giving
     normalized screen coordinates; multiply by the screen's pixel size for eq. 6.2's
     pixels. (The bracketed right-hand side printed in eq. 6.2, k[a(x0'-x1') + b(y0'-y1')
-    + c], adds c once too often; the definition k(x0'' - x1'') is what is computed.)
+    + c], equals k(x0'' - x1'' + c): the c cancels in the difference and should not be
+    there; the definition k(x0'' - x1'') is what is computed.)
 
     Returns (2,) normalized (u, v).
 
