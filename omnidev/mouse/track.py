@@ -16,10 +16,14 @@ kernel (+1 on outer bar pixels, -1 on inner ones), one ``cv2.filter2D`` per
 radius; the best center is refined to sub-pixel by a parabola through the
 scores around it.
 
-Missing landmarks (sec. 6.2.5): with one or two missing, each is predicted by
-adding the displacement of the found landmarks since the last frame (their
-mean) to its last position; with three or four missing the frame is a
-failure and the caller holds the last cursor.
+Missing landmarks (sec. 6.2.5): with one or two missing, the dissertation
+predicts each by adding the displacement of the found landmarks since the last
+frame (their mean) to its last position (``predict="translation"``). Beyond
+it, and the default, ``predict="similarity"`` carries the missing ones with
+the rotation, scale and shift the found ones underwent (exact for motion
+parallel to the screen; the translation drifts as soon as the hand turns or
+moves closer). With three or four missing the frame is a failure and the
+caller holds the last cursor.
 
 Coordinates: image pixels, x right, y down, origin at the top-left pixel's center.
 """
@@ -152,6 +156,16 @@ def track_circle(
     return Circle(cx0 + ix + dx, cy0 + iy + dy, float(rr), contrast)
 
 
+def _similarity(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The 2 x 3 similarity (rotation, scale, shift) taking two points onto two points."""
+    a = complex(*(src[1] - src[0]))
+    b = complex(*(dst[1] - dst[0]))
+    z = 1 + 0j if abs(a) < 1e-09 else b / a
+    R = np.array([[z.real, -z.imag], [z.imag, z.real]])
+    t = dst[0] - R @ src[0]
+    return np.hstack([R, t[:, None]])
+
+
 @dataclass
 class LandmarkTracker:
     """Tracks the four landmarks (TL, TR, BR, BL) frame to frame with prediction.
@@ -160,11 +174,17 @@ class LandmarkTracker:
         centers: last positions (4 x 2), found or predicted; None before the first lock.
         radius: landmark radius in pixels (from detection, updated by tracking).
         found: which landmarks were found (not predicted) in the last frame.
+        contrast: running mean edge contrast of found landmarks; a hit below
+            ``relative_contrast`` of it (a landmark cut by the image border)
+            counts as missing.
     """
 
     n: int = 6
     min_contrast: float = 25.0
+    relative_contrast: float = 0.6
+    predict: str = "similarity"
     centers: NDArray[np.float64] | None = None
+    contrast: float = 0.0
     radius: float = 0.0
     found: list[bool] = field(default_factory=lambda: [False] * 4)
 
@@ -173,6 +193,7 @@ class LandmarkTracker:
         self.centers = np.asarray(centers, np.float64).reshape(4, 2).copy()
         self.radius = float(radius)
         self.found = [True] * 4
+        self.contrast = 0.0
 
     def update(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
         """The four centers in this frame (missing ones predicted), or None on failure.
@@ -188,6 +209,10 @@ class LandmarkTracker:
             )
             for cx, cy in self.centers
         ]
+        # A landmark cut by the image border still half-fits the template: a hit
+        # must reach a good part of the contrast the landmarks had so far.
+        floor = self.relative_contrast * self.contrast
+        hits = [h if h is not None and h.contrast >= floor else None for h in hits]
         found = [h is not None for h in hits]
         if sum(found) < 2:
             self.found = found
@@ -198,12 +223,36 @@ class LandmarkTracker:
             if h is not None:
                 moves.append((h.x - self.centers[i, 0], h.y - self.centers[i, 1]))
                 new[i] = (h.x, h.y)
-        shift = np.mean(np.array(moves), axis=0)
-        for i, ok in enumerate(found):
-            if not ok:
+        missing = [i for i, ok in enumerate(found) if not ok]
+        if missing and self.predict == "similarity":
+            # rotation, scale and shift of the found landmarks since the last frame
+            # (exact for motion parallel to the screen), applied to the missing ones
+            idx = [i for i, ok in enumerate(found) if ok]
+            M, _ = (
+                cv2.estimateAffinePartial2D(
+                    self.centers[idx].astype(np.float32),
+                    new[idx].astype(np.float32),
+                    method=cv2.LMEDS,
+                )
+                if len(idx) > 2
+                else (_similarity(self.centers[idx], new[idx]), None)
+            )
+            if M is not None:
+                for i in missing:
+                    new[i] = M[:, :2] @ self.centers[i] + M[:, 2]
+                missing = []
+        if missing:  # the dissertation's prediction: the found landmarks' displacement
+            shift = np.mean(np.array(moves), axis=0)
+            for i in missing:
                 new[i] = self.centers[i] + shift
         radii = [h.r for h in hits if h is not None]
         self.radius = float(np.median(radii))
+        contrasts = [h.contrast for h in hits if h is not None]
+        self.contrast = (
+            float(np.median(contrasts))
+            if self.contrast == 0
+            else max(0.9 * self.contrast + 0.1 * float(np.median(contrasts)), 0.0)
+        )
         self.centers = new
         self.found = found
         return new.copy()

@@ -1,0 +1,99 @@
+"""The camera-mouse tracker plugin on frames of omnidev.sim.monitor, against the truth
+cursor (the screen point under the image center) on a 1920x1080 screen."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from omnidev.frame import Frame
+from omnidev.sim import monitor as mon
+from omnidev.sim.handcam import HandCamera
+from omnidev.tracking import open_tracker
+
+LAYOUT = {
+    "screen_width_mm": mon.SCREEN_W * 1000,
+    "screen_height_mm": mon.SCREEN_H * 1000,
+    "offsets_mm": {
+        k: [ox * 1000, oy * 1000]
+        for k, (ox, oy) in zip(("tl", "tr", "br", "bl"), mon.LANDMARK_OFFSETS, strict=True)
+    },
+    "circle_diameter_mm": mon.LANDMARK_RADIUS * 2000,
+    "square_side_mm": mon.LANDMARK_SQUARE * 1000,
+}
+CAM = HandCamera.default()
+
+
+@pytest.fixture(scope="module")
+def layout_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cm") / "landmarks.json"
+    path.write_text(json.dumps(LAYOUT))
+    return path
+
+
+def run(layout_file, trajectory, frames, method, variant="normal", step=1, predict=None):
+    tracker = open_tracker("camera-mouse", {"method": method}, layout_file)
+    if predict is not None:
+        tracker.tracker.predict = predict
+    out = []
+    for i in range(0, frames * step, step):
+        img, truth = mon.render_frame(
+            CAM, mon.MonitorScene(0, variant=variant), trajectory, i, supersample=2, blur_samples=2
+        )
+        s = tracker.track(Frame(img, i, i))
+        out.append((s, truth, list(tracker.tracker.found) if tracker.locked else None))
+    return out
+
+
+def err_px(sample, truth):
+    return float(
+        np.hypot((sample.x - truth.screen_xy[0]) * 1919, (sample.y - truth.screen_xy[1]) * 1079)
+    )
+
+
+def test_drift_all_landmarks_visible(layout_file):
+    res = {m: run(layout_file, "drift", 12, m) for m in ("homography", "affine")}
+    errs = {m: [err_px(s, t) for s, t, _ in r if s is not None] for m, r in res.items()}
+    rms = {m: float(np.sqrt(np.mean(np.square(e)))) for m, e in errs.items()}
+    print(
+        f"\ndrift, 12 frames: cursor RMS homography {rms['homography']:.2f} px, "
+        f"affine {rms['affine']:.2f} px (1920x1080)"
+    )
+    assert len(errs["homography"]) == 12
+    assert rms["homography"] <= 2.0
+
+
+def test_partial_predicts_missing_landmarks(layout_file):
+    """The partial trajectory loses one or two landmarks: they are predicted (sec. 6.2.5)."""
+    res = run(layout_file, "partial", 15, "homography")
+    pred = [err_px(s, t) for s, t, found in res if s is not None and found and not all(found)]
+    diss = run(layout_file, "partial", 15, "homography", predict="translation")
+    pred_d = [err_px(s, t) for s, t, found in diss if s is not None and found and not all(found)]
+    print(
+        f"\npartial, dissertation's translation prediction: {len(pred_d)} frames, "
+        f"RMS {np.sqrt(np.mean(np.square(pred_d))):.2f} px"
+    )
+    print(
+        f"\npartial: {len(pred)} frames with predicted landmarks, "
+        f"RMS {np.sqrt(np.mean(np.square(pred))) if pred else float('nan'):.2f} px"
+    )
+    assert pred, "no frame tracked with a landmark missing"
+    assert float(np.sqrt(np.mean(np.square(pred)))) <= 10.0
+
+
+@pytest.mark.parametrize("variant", ["no-monitor", "three-landmarks"])
+def test_no_false_lock(layout_file, variant):
+    assert all(s is None for s, _, _ in run(layout_file, "drift", 4, "homography", variant))
+
+
+def test_needs_its_layout(tmp_path):
+    from omnidev.errors import TrackerError
+
+    with pytest.raises(TrackerError, match="landmark layout"):
+        open_tracker("camera-mouse", {}, None)
+    bad = tmp_path / "l.json"
+    bad.write_text(json.dumps({k: v for k, v in LAYOUT.items() if k != "offsets_mm"}))
+    with pytest.raises(TrackerError, match="offsets_mm"):
+        open_tracker("camera-mouse", {}, bad)
