@@ -203,6 +203,7 @@ class Pipeline:
                     else:
                         raise OmnidevError(f"{uri}: the source ended")
             except OmnidevError as exc:
+                self._drain()  # frames captured before the loss still count
                 self._lost.set()
                 self._wait_for_camera(exc, delay)
                 delay = min(delay * 2, self.config.retry_max_s)
@@ -211,6 +212,12 @@ class Pipeline:
                 self._lost.set()
                 self._wait_for_camera(exc, delay)
                 delay = min(delay * 2, self.config.retry_max_s)
+
+    def _drain(self, timeout: float = 1.0) -> None:
+        """Wait until the worker has taken every queued frame (or ``timeout`` s)."""
+        end = time.monotonic() + timeout
+        while not self._queue.empty() and time.monotonic() < end and not self._stop.is_set():
+            time.sleep(0.002)
 
     def _wait_for_camera(self, exc: BaseException, delay: float) -> None:
         if self._stop.is_set():
@@ -231,7 +238,7 @@ class Pipeline:
                     frame = self._queue.get(timeout=0.05)
                 except queue.Empty:
                     continue
-                if not self._paused.is_set() and not self._lost.is_set():
+                if not self._paused.is_set():
                     self._process(frame)
         finally:
             try:
