@@ -24,6 +24,7 @@ SUBCOMMANDS = (
     "daemon_cmd",
     "ctl_cmd",
     "replay_cmd",
+    "mouse_cmd",
 )
 
 
