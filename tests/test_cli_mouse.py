@@ -56,3 +56,28 @@ def test_mouse_cli_errors(tmp_path, capsys):
     assert main(["mouse", str(tmp_path / "missing.avi"), "--layout", str(layout)]) == 2
     err = capsys.readouterr().err
     assert "missing.avi" in err and err.strip().count("\n") == 0
+
+
+def test_landmark_sheet_is_true_size(tmp_path, capsys):
+    import re
+
+    import cv2
+
+    from omnidev.mouse.landmarks import LandmarkLayout
+
+    out = tmp_path / "sheet"
+    argv = ["mouse-landmarks", str(out), "--screen-mm", "527x296", "--circle-mm", "20"]
+    assert main(argv) == 0
+    page = cv2.imread(str(out / "landmarks.png"), cv2.IMREAD_GRAYSCALE)
+    assert page.shape == (3508, 2480)  # A4 at 300 dpi
+    _, _, stats, _ = cv2.connectedComponentsWithStats((page < 60).astype(np.uint8))
+    *_, c1, c2, c3, c4, bar = sorted(stats[1:, cv2.CC_STAT_WIDTH])  # 4 circles, the scale bar
+    want = 20.0 / 25.4 * 300
+    assert all(abs(w - want) <= 2 for w in (c1, c2, c3, c4)), ((c1, c2, c3, c4), want)
+    assert abs(bar - 100.0 / 25.4 * 300) <= 6  # the 100 mm scale bar (ticks add a few px)
+    box = re.search(rb"MediaBox \[ ?0 0 ([\d.]+) ([\d.]+)", (out / "landmarks.pdf").read_bytes())
+    assert box and abs(float(box[1]) - 595.276) < 0.01 and abs(float(box[2]) - 841.89) < 0.01
+    layout = LandmarkLayout.from_dict(json.loads((out / "landmarks.json").read_text()))
+    assert layout.screen_width_mm == 527 and layout.circle_diameter_mm == 20
+    assert main(argv) == 2  # exists: not overwritten without --force
+    assert "--force" in capsys.readouterr().err

@@ -35,6 +35,28 @@ def register(sub: Any) -> None:
     p.add_argument("--screen", default="1920x1080+0+0", help="target screen WxH+X+Y")
     p.add_argument("--filter", choices=("one-euro", "none"), default="one-euro")
     p.set_defaults(func=run)
+    lm = sub.add_parser(
+        "mouse-landmarks",
+        help="write the printable camera-mouse landmark sheet (PNG, PDF) and its layout file",
+        description="Write landmarks.png and landmarks.pdf (A4, true size: check the 100 mm "
+        "scale bar after printing) and landmarks.json, the layout `omnidev mouse --layout` "
+        "reads. Stick the landmarks with their circle centres MARGIN outside each screen corner.",
+    )
+    lm.add_argument("outdir", type=Path)
+    lm.add_argument(
+        "--screen-mm", required=True, metavar="WxH", help="the lit screen area, mm (e.g. 527x296)"
+    )
+    lm.add_argument(
+        "--margin-mm",
+        default="25x25",
+        metavar="XxY",
+        help="circle centre outside each screen corner, mm (default 25x25)",
+    )
+    lm.add_argument("--circle-mm", type=float, default=20.0, help="circle diameter, mm")
+    lm.add_argument("--square-mm", type=float, default=30.0, help="white square side, mm")
+    lm.add_argument("--dpi", type=float, default=300.0)
+    lm.add_argument("--force", action="store_true", help="overwrite existing files")
+    lm.set_defaults(func=run_landmarks)
 
 
 def _value(text: str) -> Any:
@@ -99,4 +121,56 @@ def run(args: argparse.Namespace) -> int:
         f"{st['latency_p50_ms']} ms; buttons released",
         file=sys.stderr,
     )
+    return 0
+
+
+def _pair(text: str, what: str) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise OmnidevError(f"{what} {text!r} is not WxH in mm (e.g. 527x296)") from None
+    return a, b
+
+
+def run_landmarks(args: argparse.Namespace) -> int:
+    import json
+
+    import cv2
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from omnidev.atomic import atomic_path
+    from omnidev.mouse.landmarks import LandmarkLayout, draw_landmark_sheet
+
+    w, h = _pair(args.screen_mm, "--screen-mm")
+    mx, my = _pair(args.margin_mm, "--margin-mm")
+    if args.dpi < 72 or args.dpi > 1200:
+        raise OmnidevError(f"--dpi {args.dpi:g}: use 72..1200")
+    layout = LandmarkLayout.symmetric(
+        w, h, margin_mm=(mx, my), circle_diameter_mm=args.circle_mm, square_side_mm=args.square_mm
+    )
+    page = draw_landmark_sheet(layout, dpi=args.dpi)
+    args.outdir.mkdir(parents=True, exist_ok=True)
+    outs = {n: args.outdir / n for n in ("landmarks.png", "landmarks.pdf", "landmarks.json")}
+    for path in outs.values():
+        if path.exists() and not args.force:
+            raise OmnidevError(f"{path} exists; pass --force to overwrite")
+    with atomic_path(outs["landmarks.png"], force=args.force) as tmp:
+        if not cv2.imwrite(str(tmp), page, [cv2.IMWRITE_PNG_COMPRESSION, 9]):
+            raise OmnidevError(f"{outs['landmarks.png']}: cannot write the PNG")
+    paper_in = (210.0 / 25.4, 297.0 / 25.4)
+    fig = plt.figure(figsize=paper_in)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))  # the page image fills the A4 page exactly
+    ax.imshow(page, cmap="gray", vmin=0, vmax=255, interpolation="nearest")
+    ax.set_axis_off()
+    with atomic_path(outs["landmarks.pdf"], force=args.force) as tmp:
+        fig.savefig(tmp, format="pdf", dpi=args.dpi)
+    plt.close(fig)
+    with atomic_path(outs["landmarks.json"], force=args.force) as tmp:
+        tmp.write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
+    for path in outs.values():
+        print(f"wrote {path}")
+    print("print the PDF at 100% (no fit-to-page) and check the 100 mm scale bar")
     return 0
