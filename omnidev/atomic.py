@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -46,4 +47,31 @@ def atomic_path(path: Path, *, force: bool = False) -> Iterator[Path]:
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp_path.unlink()
+        raise
+
+
+def check_output_dir(path: Path, *, force: bool) -> None:
+    """Raise :class:`OutputError` if folder ``path`` holds files and not ``force``."""
+    if path.exists() and any(path.iterdir()) and not force:
+        raise OutputError(f"{path} exists and is not empty; pass --force to overwrite")
+
+
+@contextlib.contextmanager
+def atomic_dir(path: Path, *, force: bool = False) -> Iterator[Path]:
+    """Yield a fresh temporary folder beside ``path``; it replaces ``path`` on success.
+
+    On any exception the temporary folder is removed and ``path`` is untouched.
+    """
+    path = Path(path)
+    check_output_dir(path, force=force)
+    tmp = path.with_name(f".{path.name}.tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    try:
+        yield tmp
+        if path.exists():
+            shutil.rmtree(path)
+        tmp.rename(path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
         raise

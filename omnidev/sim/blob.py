@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,7 +19,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from omnidev.errors import OutputError
+from omnidev.atomic import atomic_dir, check_output_dir
 
 RADIUS = 10  # px, disc radius at rest; a click doubles it
 
@@ -97,13 +96,9 @@ def make_blob_fixture(
 ) -> dict[str, Any]:
     """Write blob.avi (MJPG) and truth.json into ``outdir``; returns the truth."""
     outdir = Path(outdir)
-    if outdir.exists() and any(outdir.iterdir()) and not force:
-        raise OutputError(f"{outdir} exists and is not empty; pass --force to overwrite")
+    check_output_dir(outdir, force=force)  # before the rendering, not after
     images, truth = render_blob_video(frames, width, height, seed)
-    tmp = outdir.with_name(f".{outdir.name}.tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    try:
+    with atomic_dir(outdir, force=force) as tmp:
         video = cv2.VideoWriter(
             str(tmp / "blob.avi"), cv2.VideoWriter.fourcc(*"MJPG"), fps, (width, height)
         )
@@ -127,12 +122,6 @@ def make_blob_fixture(
             f"--fps {fps:g} --seed {seed} --force",
         }
         (tmp / "truth.json").write_text(json.dumps(doc, indent=1) + "\n")
-        if outdir.exists():
-            shutil.rmtree(outdir)
-        tmp.rename(outdir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return doc
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -12,6 +11,7 @@ from typing import Any
 import cv2
 from tqdm import tqdm
 
+from omnidev.atomic import atomic_dir, check_output_dir
 from omnidev.errors import OutputError
 from omnidev.sim.fisheye import EquidistantFisheyeCamera
 from omnidev.sim.landmarks import make_landmarks, write_landmarks_csv
@@ -41,8 +41,7 @@ def make_omni_fixture(
     truth.json (camera, scene and view parameters, and the command).
     """
     outdir = Path(outdir)
-    if outdir.exists() and any(outdir.iterdir()) and not force:
-        raise OutputError(f"{outdir} exists and is not empty; pass --force to overwrite")
+    check_output_dir(outdir, force=force)  # before the rendering, not after
     cam: SvpHyperbolicCamera | EquidistantFisheyeCamera
     if camera == "svp-hyperbolic":
         cam = SvpHyperbolicCamera.default(size)
@@ -51,10 +50,7 @@ def make_omni_fixture(
     else:
         raise OutputError(f"unknown fixture camera {camera!r} (svp-hyperbolic, equidistant)")
     scene = RoomScene(seed)
-    tmp = outdir.with_name(f".{outdir.name}.tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    try:
+    with atomic_dir(outdir, force=force) as tmp:
         video = cv2.VideoWriter(
             str(tmp / "omni.avi"), cv2.VideoWriter.fourcc(*"MJPG"), fps, (size, size)
         )
@@ -92,10 +88,4 @@ def make_omni_fixture(
             f"--fps {fps:g} --seed {seed} --camera {camera} --force",
         }
         (tmp / "truth.json").write_text(json.dumps(truth, indent=2) + "\n")
-        if outdir.exists():
-            shutil.rmtree(outdir)
-        tmp.rename(outdir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return truth

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -34,6 +33,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from omnidev.atomic import atomic_dir, check_output_dir
 from omnidev.errors import OutputError
 from omnidev.sim.handcam import FloatArray, HandCamera, Pose, look_at, project_points
 
@@ -504,15 +504,11 @@ def make_mouse_fixture(
             f"unknown camera-mouse trajectory {trajectory!r} ({', '.join(TRAJECTORIES)})"
         )
     outdir = Path(outdir)
-    if outdir.exists() and any(outdir.iterdir()) and not force:
-        raise OutputError(f"{outdir} exists and is not empty; pass --force to overwrite")
+    check_output_dir(outdir, force=force)  # before the rendering, not after
     cam = HandCamera.default(*size)
     landmarks_present(variant)
     scene = MonitorScene(seed, variant=variant)
-    tmp = outdir.with_name(f".{outdir.name}.tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    try:
+    with atomic_dir(outdir, force=force) as tmp:
         video = cv2.VideoWriter(str(tmp / "mouse.avi"), cv2.VideoWriter.fourcc(*"MJPG"), fps, size)
         if not video.isOpened():
             raise OutputError(f"cannot write MJPG video in {tmp}")
@@ -569,10 +565,4 @@ def make_mouse_fixture(
             f"--frames {frames} --fps {fps:g} --seed {seed} --scene {variant} --force",
         }
         (tmp / "truth.json").write_text(json.dumps(doc, indent=1) + "\n")
-        if outdir.exists():
-            shutil.rmtree(outdir)
-        tmp.rename(outdir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return doc
