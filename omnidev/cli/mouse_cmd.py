@@ -16,6 +16,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from omnidev.cli.options import sink_options
 from omnidev.errors import OmnidevError
 
 
@@ -59,15 +60,6 @@ def register(sub: Any) -> None:
     lm.set_defaults(func=run_landmarks)
 
 
-def _value(text: str) -> Any:
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return {"true": True, "false": False}.get(text.lower(), text)
-
-
 def run(args: argparse.Namespace) -> int:
     from omnidev.daemon.config import parse_config
     from omnidev.daemon.pipeline import Pipeline
@@ -75,12 +67,7 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.layout.is_file():
         raise OmnidevError(f"{args.layout}: landmark layout file not found")
-    options: dict[str, Any] = {}
-    for item in args.sink_option:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise OmnidevError(f"--sink-option {item!r} is not KEY=VALUE")
-        options[key] = _value(value)
+    options = sink_options(args.sink_option)
     with open_source(args.source) as probe:  # a clear error now, not a retry loop
         ends = probe.frame_count is not None  # a file that is not looped
     doc = {

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from omnidev.cli.options import sink_options
 from omnidev.errors import OmnidevError
 
 
@@ -32,15 +33,6 @@ def register(sub: Any) -> None:
     p.set_defaults(func=run)
 
 
-def _value(text: str) -> Any:
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return {"true": True, "false": False}.get(text.lower(), text)
-
-
 def run(args: argparse.Namespace) -> int:
     from omnidev.screen import ScreenMapping, ScreenRect
     from omnidev.sinks import open_sink, release_on_signals
@@ -48,12 +40,7 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.recording.is_file():
         raise OmnidevError(f"{args.recording}: recording not found")
-    options: dict[str, Any] = {}
-    for item in args.sink_option:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise OmnidevError(f"--sink-option {item!r} is not KEY=VALUE")
-        options[key] = _value(value)
+    options = sink_options(args.sink_option)
     try:
         rect = ScreenRect.parse(args.screen)
         layout = ScreenRect.parse(args.layout) if args.layout else None

@@ -17,6 +17,7 @@ from tqdm import tqdm
 
 from omnidev.calibfile import load_camera
 from omnidev.camera import Remapper, build_maps
+from omnidev.cli.options import key_values
 from omnidev.errors import OmnidevError, OutputError
 from omnidev.rig import load_rig
 from omnidev.sources import open_source
@@ -59,16 +60,6 @@ def register(sub: Any) -> None:
     p.set_defaults(func=run)
 
 
-def _options(pairs: list[str]) -> dict[str, str]:
-    out: dict[str, str] = {}
-    for item in pairs:
-        key, eq, value = item.partition("=")
-        if not eq or not key.strip():
-            raise OmnidevError(f"--camera-option must be KEY=VALUE, got {item!r}")
-        out[key.strip()] = value.strip()
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     if len(args.view) != len(args.output):
         raise OmnidevError(
@@ -85,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     if not uri:
         raise OmnidevError("give an input source (path or URI)")
     views = [parse_view(v) for v in args.view]
-    camera = load_camera(calib_path, _options(args.camera_option))
+    camera = load_camera(calib_path, key_values(args.camera_option, "--camera-option"))
     try:
         remappers = [
             Remapper(build_maps(camera, v), interpolation=args.interpolation) for v in views
