@@ -60,7 +60,7 @@ def run(quick: bool = False) -> dict[str, Any]:
         )
     )
     tracker.lock(first.centers, radius)
-    for rep in range(3 if quick else 5):
+    for _ in range(3 if quick else 5):
         for img in frames:
             t0 = time.perf_counter_ns()
             d = detect_landmarks(img, layout)
@@ -73,7 +73,6 @@ def run(quick: bool = False) -> dict[str, Any]:
             t2 = time.perf_counter_ns()
             det_ms.append((t1 - t0) / 1e6)
             trk_ms.append((t2 - t1) / 1e6)
-        del rep
     track, detect = float(np.median(trk_ms)), float(np.median(det_ms))
     return {
         "frame": "640x480 BGR (omnidev.sim.monitor, drift)",
