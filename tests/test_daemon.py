@@ -208,3 +208,41 @@ def test_replay_cli_reproduces_a_recording(tmp_path, capsys):
     assert strip == [{k: v for k, v in e.items() if k != "t_ns"} for e in b]
     assert main(["replay", str(tmp_path / "none.jsonl"), "--sink", "record"]) == 2
     assert "recording not found" in capsys.readouterr().err
+
+
+def test_frame_size_change_stops_with_buttons_released(tmp_path):
+    """A frame of another size mid-stream: a clear error, the pipeline stops, the button
+    held at that moment is released (blob fixture frames as images, pressed at the switch)."""
+    import cv2
+
+    truth = load_blob_truth(BLOB / "truth.json")
+    first_press = next(i for i, t in enumerate(truth) if t.pressed)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    cap = cv2.VideoCapture(str(BLOB / "blob.avi"))
+    for i in range(first_press + 3):
+        ok, img = cap.read()
+        assert ok
+        cv2.imwrite(str(frames / f"f{i:04d}.png"), img)
+    cap.release()
+    assert truth[first_press + 2].pressed  # still pressed when the odd frame comes
+    small = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2))
+    cv2.imwrite(str(frames / f"f{first_press + 3:04d}.png"), small)
+    rec = tmp_path / "events.jsonl"
+    cfg = load_config(
+        blob_config(tmp_path, f"images:{frames}", "record", f'path = "{rec}"', extra="queue = 64")
+    )
+    p = Pipeline(cfg)
+    p.start()
+    try:
+        assert wait_for(lambda: not p.alive, 20)
+    finally:
+        p.stop()
+    w, h = img.shape[1], img.shape[0]
+    assert p.fatal is not None
+    assert f"frame {first_press + 3} is {w // 2}x{h // 2}, the stream was {w}x{h}" in p.fatal
+    assert p.status()["error"] == p.fatal
+    events = list(read_events(rec))
+    buttons = [(e["button"], e["down"]) for e in events if e["kind"] == "button"]
+    assert buttons == [("left", True), ("left", False)]
+    assert events[-1]["kind"] == "close"

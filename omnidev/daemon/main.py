@@ -105,7 +105,8 @@ class Daemon:
                     except OmnidevError as exc:
                         log.error("reload failed, keeping the running configuration: %s", exc)
                 if not self.pipeline.alive:
-                    log.error("pipeline thread died; exiting so systemd restarts the daemon")
+                    why = self.pipeline.fatal or "pipeline thread died"
+                    log.error("%s; exiting so systemd restarts the daemon", why)
                     return 1
                 if self.pipeline.healthy():
                     sdnotify.watchdog()

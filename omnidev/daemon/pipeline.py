@@ -73,6 +73,8 @@ class Pipeline:
         self._lock = threading.Lock()
         self.heartbeat = time.monotonic()
         self._sink_failing = False
+        self._size: tuple[int, int] | None = None  # frame size of the open source
+        self.fatal: str | None = None  # why the pipeline stopped by itself, if it did
         self.tracker: Tracker = open_tracker(
             config.tracker, config.tracker_options, config.calibration
         )
@@ -160,6 +162,7 @@ class Pipeline:
             "events": self.sink.events,
             "camera_retries": s.camera_retries,
             "uptime_s": round(time.monotonic() - self.started, 1),
+            "error": self.fatal,
         }
 
     def latencies_ns(self) -> list[int]:
@@ -262,8 +265,23 @@ class Pipeline:
         self.tracker.reset()
         if self.filter is not None:
             self.filter.reset()
+        self._size = None  # a reopened source may deliver another size
 
     def _process(self, frame: Frame) -> None:
+        h, w = frame.image.shape[:2]
+        if self._size is None:
+            self._size = (w, h)
+        elif self._size != (w, h):
+            # Calibrations and trackers are tied to one frame size: stop rather than
+            # move the pointer from a frame they cannot interpret (buttons are released
+            # when the worker closes the sink).
+            self.fatal = (
+                f"{self.config.source}: frame {frame.index} is {w}x{h}, the stream was "
+                f"{self._size[0]}x{self._size[1]}; stopping with all buttons released"
+            )
+            log.error("%s", self.fatal)
+            self._stop.set()
+            return
         try:
             sample = self.tracker.track(frame)
         except Exception as exc:
