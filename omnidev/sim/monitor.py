@@ -58,7 +58,7 @@ LANDMARK_OFFSETS = (
     (-LANDMARK_INSET, LANDMARK_INSET),
 )
 SCREEN_CORNERS = ((0.0, 0.0), (SCREEN_W, 0.0), (SCREEN_W, SCREEN_H), (0.0, SCREEN_H))
-TRAJECTORIES = ("drift", "sweep", "roll", "oblique", "partial")
+TRAJECTORIES = ("drift", "sweep", "roll", "oblique", "partial", "still")
 # Scenes: the full monitor; the wall alone; the monitor with bottom_left's landmark removed.
 VARIANTS = ("normal", "no-monitor", "three-landmarks")
 SCREEN_CENTER = np.array([SCREEN_W / 2, SCREEN_H / 2, 0.0])
@@ -84,6 +84,10 @@ def trajectory_pose(name: str, t: float) -> Pose:
       deg, the direction of the tilt turning around over 9 s.
     - partial: 0.6 m away, aim wanders towards the edges so one or two
       landmarks leave the picture.
+    - still: 0.9 m away, a hand held still aiming near the screen centre: a slow
+      sway below 0.3 Hz (aim angle ~0.1 deg plus a few mm of hand position:
+      ~0.15-0.2 deg RMS of the optical axis per axis) and physiological tremor
+      (three sines per axis at 8-12 Hz, ~0.1 deg peak, ~0.04 deg RMS per axis).
     """
     s = SCREEN_CENTER
     tau = 2 * math.pi
@@ -116,7 +120,40 @@ def trajectory_pose(name: str, t: float) -> Pose:
         C = s + np.array([0.03 * math.sin(0.4 * t), 0.0, -0.6])
         aim = s + np.array([0.17 * math.sin(tau * t / 5.0), 0.03 * math.sin(tau * t / 3.3), 0.0])
         return look_at(C, aim, 5.0 * math.sin(tau * t / 7.0))
+    if name == "still":
+        return _still_pose(t)
     raise OutputError(f"unknown camera-mouse trajectory {name!r} ({', '.join(TRAJECTORIES)})")
+
+
+# Physiological tremor of an outstretched hand: 8-12 Hz. Its angular amplitude
+# here (~0.04 deg RMS per axis, ~0.1 deg peak, i.e. ~0.7 mm RMS of aim at 0.9 m)
+# is an assumption of the order reported for hand-held pointers, not a measured
+# figure. Rows: (frequency Hz, amplitude deg, phase rad), yaw then pitch.
+_TREMOR_YAW = ((8.3, 0.045, 0.3), (9.7, 0.035, 2.1), (11.4, 0.025, 4.0))
+_TREMOR_PITCH = ((8.9, 0.040, 1.2), (10.3, 0.035, 5.1), (11.9, 0.020, 0.7))
+
+
+def _still_pose(t: float) -> Pose:
+    """The "still" trajectory: sway plus tremor as angles of the aim (see trajectory_pose)."""
+    s = SCREEN_CENTER
+    tau = 2 * math.pi
+    dist = 0.9
+    yaw = 0.10 * math.sin(tau * 0.21 * t + 0.4) + sum(
+        a * math.sin(tau * f * t + p) for f, a, p in _TREMOR_YAW
+    )
+    pitch = 0.08 * math.sin(tau * 0.29 * t + 1.3) + sum(
+        a * math.sin(tau * f * t + p) for f, a, p in _TREMOR_PITCH
+    )
+    C = s + np.array([0.004 * math.sin(0.7 * t), 0.003 * math.sin(0.5 * t + 1.0), -dist])
+    # aim near (not exactly at) the centre, turned by the sway and tremor angles
+    aim = s + np.array(
+        [
+            0.012 + dist * math.tan(math.radians(yaw)),
+            -0.008 + dist * math.tan(math.radians(pitch)),
+            0.0,
+        ]
+    )
+    return look_at(C, aim, 1.0 * math.sin(tau * 0.17 * t))
 
 
 @dataclass(frozen=True)
