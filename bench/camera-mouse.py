@@ -1,7 +1,9 @@
 """Camera-mouse speed at 640x480, single-threaded: tracking vs full detection per frame.
 
 Frames come from omnidev.sim.monitor (drift trajectory, 30 frames). Figures:
-- track_ms_per_frame: the tracking stage (sec. 6.2.4, four landmarks) + cursor.
+- track_ms_per_frame: the tracking stage (sec. 6.2.4, four landmarks) + cursor;
+  track_parts_ms splits it (medians): to_gray (BGR to grey, whole frame),
+  landmarks (LandmarkTracker.update), cursor (corners and homography).
 - detect_ms_per_frame: the detection stage (sec. 6.2.1) + cursor.
 - dissertation_ms_per_frame_320x240: the dissertation's reported 11-14 ms per
   320x240 frame for its whole process (Pentium 4, 3 GHz; sec. 6.3), for reference.
@@ -43,6 +45,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     center = image_center(cam.width, cam.height)
     det_ms: list[float] = []
     trk_ms: list[float] = []
+    parts: dict[str, list[float]] = {"to_gray": [], "landmarks": [], "cursor": []}
     tracker = LandmarkTracker()
     first = detect_landmarks(frames[0], layout)
     assert first is not None, "no landmarks detected in the benchmark's first frame"
@@ -59,25 +62,34 @@ def run(quick: bool = False) -> dict[str, Any]:
             )
         )
     )
-    tracker.lock(first.centers, radius)
     for _ in range(3 if quick else 5):
+        # the clip replays from its first frame: lock again there, so that every
+        # frame times a tracker that follows the landmarks (not one lost after the jump)
+        tracker.lock(first.centers, radius)
         for img in frames:
             t0 = time.perf_counter_ns()
             d = detect_landmarks(img, layout)
             if d is not None:
                 cursor_homography(d.screen_corners, center)
             t1 = time.perf_counter_ns()
-            c = tracker.update(to_gray(img))
+            gray = to_gray(img)
+            tg = time.perf_counter_ns()
+            c = tracker.update(gray)
+            tl = time.perf_counter_ns()
             if c is not None:
                 cursor_homography(screen_corners_from_landmarks(c, layout), center)
             t2 = time.perf_counter_ns()
             det_ms.append((t1 - t0) / 1e6)
             trk_ms.append((t2 - t1) / 1e6)
+            parts["to_gray"].append((tg - t1) / 1e6)
+            parts["landmarks"].append((tl - tg) / 1e6)
+            parts["cursor"].append((t2 - tl) / 1e6)
     track, detect = float(np.median(trk_ms)), float(np.median(det_ms))
     return {
         "frame": "640x480 BGR (omnidev.sim.monitor, drift)",
         "threads": 1,
         "track_ms_per_frame": round(track, 3),
+        "track_parts_ms": {k: round(float(np.median(v)), 3) for k, v in parts.items()},
         "detect_ms_per_frame": round(detect, 3),
         "detect_vs_track": round(detect / track, 1),
         "dissertation_ms_per_frame_320x240": "11-14 (Pentium 4, whole process)",
