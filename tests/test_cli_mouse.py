@@ -56,6 +56,20 @@ def test_mouse_cli_errors(tmp_path, capsys):
     assert main(["mouse", str(tmp_path / "missing.avi"), "--layout", str(layout)]) == 2
     err = capsys.readouterr().err
     assert "missing.avi" in err and err.strip().count("\n") == 0
+    bad = tmp_path / "bad.avi"
+    bad.write_bytes(b"not a video")
+    assert main(["mouse", str(bad), "--layout", str(layout)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.avi: OpenCV cannot read this file as a video" in err
+    assert err.strip().count("\n") == 0
+    no_offsets = tmp_path / "no_offsets.json"
+    no_offsets.write_text(json.dumps({k: v for k, v in layout_dict().items() if k != "offsets_mm"}))
+    fx = tmp_path / "fx"
+    make_mouse_fixture(fx, trajectory="drift", frames=1, fps=30)
+    assert main(["mouse", str(fx / "mouse.avi"), "--layout", str(no_offsets)]) == 2
+    err = capsys.readouterr().err
+    assert "no_offsets.json" in err and "missing key 'offsets_mm'" in err
+    assert err.strip().count("\n") == 0
 
 
 def test_landmark_sheet_is_true_size(tmp_path, capsys):
@@ -81,3 +95,28 @@ def test_landmark_sheet_is_true_size(tmp_path, capsys):
     assert layout.screen_width_mm == 527 and layout.circle_diameter_mm == 20
     assert main(argv) == 2  # exists: not overwritten without --force
     assert "--force" in capsys.readouterr().err
+
+
+def test_mouse_cli_frame_size_change_is_one_line_error(tmp_path, capsys):
+    import cv2
+
+    fx = tmp_path / "fx"
+    make_mouse_fixture(fx, trajectory="drift", frames=3, fps=30)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    cap = cv2.VideoCapture(str(fx / "mouse.avi"))
+    for i in range(3):
+        ok, img = cap.read()
+        assert ok
+        cv2.imwrite(str(frames / f"f{i}.png"), img)
+    cv2.imwrite(str(frames / "f3.png"), cv2.resize(img, (320, 240)))
+    layout = tmp_path / "landmarks.json"
+    layout.write_text(json.dumps(layout_dict()))
+    rec = tmp_path / "events.jsonl"
+    argv = ["mouse", f"images:{frames}", "--layout", str(layout), "--sink-option", f"path={rec}"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "frame 3 is 320x240, the stream was 640x480" in err[-1], err
+    events = list(read_events(rec))
+    assert [e for e in events if e["kind"] == "move"]  # a still-image source may drop frames
+    assert events[-1]["kind"] == "close"

@@ -32,10 +32,50 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--sink-option", action="append", default=[], metavar="KEY=VALUE", help="sink option"
     )
-    p.add_argument("--method", choices=("homography", "affine"), default="homography")
+    p.add_argument(
+        "--method",
+        choices=("homography", "affine"),
+        default="homography",
+        help="cursor from the four screen corners (affine: the dissertation's eqs. 6.1-6.4)",
+    )
+    p.add_argument(
+        "--predict",
+        choices=("rotation", "similarity", "translation"),
+        default="rotation",
+        help="how one or two missing landmarks are predicted (translation: the dissertation's)",
+    )
+    p.add_argument(
+        "--fov-deg",
+        type=float,
+        default=60.0,
+        help="the webcam's horizontal field of view, degrees (for --predict rotation)",
+    )
     p.add_argument("--screen", default="1920x1080+0+0", help="target screen WxH+X+Y")
     p.add_argument("--filter", choices=("one-euro", "none"), default="one-euro")
     p.set_defaults(func=run)
+    ev = sub.add_parser(
+        "mouse-eval",
+        help="camera-mouse cursor error against a rendered fixture's truth",
+        description="Run the camera-mouse tracker frame by frame (no filter, no frame "
+        "dropped) on fixture folders written by `omnidev sim mouse` and print the cursor "
+        "error against truth on the 1920x1080 screen: frames with all four landmarks "
+        "visible, with one or two predicted, and with three or more missing (which must "
+        "give no cursor).",
+    )
+    ev.add_argument("fixtures", nargs="+", type=Path, help="fixture folders (truth.json inside)")
+    ev.add_argument(
+        "--method", choices=("homography", "affine", "both"), default="both", help="cursor model"
+    )
+    ev.add_argument(
+        "--predict",
+        choices=("rotation", "similarity", "translation"),
+        default="rotation",
+        help="how missing landmarks are predicted (translation: the dissertation's)",
+    )
+    ev.add_argument("--fov-deg", type=float, default=60.0, help="webcam horizontal field of view")
+    ev.add_argument("--layout", type=Path, help="layout file (default: FIXTURE/landmarks.json)")
+    ev.add_argument("--json", action="store_true", help="print the figures as JSON")
+    ev.set_defaults(func=run_eval)
     lm = sub.add_parser(
         "mouse-landmarks",
         help="write the printable camera-mouse landmark sheet (PNG, PDF) and its layout file",
@@ -75,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         "tracker": {
             "name": "camera-mouse",
             "calibration": str(args.layout.resolve()),
-            "options": {"method": args.method},
+            "options": {"method": args.method, "predict": args.predict, "fov_deg": args.fov_deg},
         },
         "filter": {"kind": args.filter},
         "sink": {"name": args.sink, "options": options},
@@ -92,11 +132,14 @@ def run(args: argparse.Namespace) -> int:
     pipeline.start()
     try:
         while not stop.wait(0.1):
+            if not pipeline.alive:
+                pipeline.stop()
+                raise OmnidevError(
+                    pipeline.fatal or "the pipeline stopped unexpectedly (see the log above)"
+                )
             st = pipeline.status()
             if ends and st["state"] == "waiting for camera":
                 break  # the file ended
-            if not pipeline.alive:
-                raise OmnidevError("the pipeline stopped unexpectedly (see the log above)")
         time.sleep(0.05)
     finally:
         pipeline.stop()
@@ -160,4 +203,73 @@ def run_landmarks(args: argparse.Namespace) -> int:
     for path in outs.values():
         print(f"wrote {path}")
     print("print the PDF at 100% (no fit-to-page) and check the 100 mm scale bar")
+    return 0
+
+
+def evaluate_fixture(
+    folder: Path,
+    method: str,
+    predict: str = "rotation",
+    layout: Path | None = None,
+    fov_deg: float = 60.0,
+) -> dict[str, Any]:
+    """The :func:`omnidev.mouse.evaluate.evaluate` figures of one fixture folder."""
+    import json
+
+    from omnidev.frame import Frame
+    from omnidev.mouse.evaluate import evaluate
+    from omnidev.sources import open_source
+    from omnidev.tracking import open_tracker
+
+    truth_path = folder / "truth.json"
+    try:
+        doc = json.loads(truth_path.read_text(encoding="utf-8"))
+        truth = doc["per_frame"]
+    except OSError as exc:
+        raise OmnidevError(f"{truth_path}: cannot read: {exc.strerror}") from None
+    except (ValueError, KeyError, TypeError) as exc:
+        raise OmnidevError(f"{truth_path}: not a camera-mouse truth file ({exc})") from None
+    layout = layout or folder / "landmarks.json"
+    options = {"method": method, "predict": predict, "fov_deg": fov_deg}
+    tracker = open_tracker("camera-mouse", options, layout)
+    cursors: list[tuple[float, float] | None] = []
+    with open_source(str(folder / "mouse.avi")) as source:
+        for frame in source:
+            s = tracker.track(Frame(frame.image, frame.index, frame.index))
+            cursors.append(None if s is None else (s.x, s.y))
+    if len(cursors) != len(truth):
+        raise OmnidevError(
+            f"{folder / 'mouse.avi'}: {len(cursors)} frames, truth.json has {len(truth)}"
+        )
+    figures = evaluate(cursors, truth).as_dict()
+    figures.update(
+        fixture=str(folder), method=method, predict=predict, fov_deg=fov_deg, frames=len(truth)
+    )
+    figures["relocks"] = getattr(tracker, "relocks", None)
+    return figures
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    import json
+
+    methods = ("homography", "affine") if args.method == "both" else (args.method,)
+    rows = []
+    for folder in args.fixtures:
+        for m in methods:
+            rows.append(evaluate_fixture(folder, m, args.predict, args.layout, args.fov_deg))
+    if args.json:
+        print(json.dumps(rows, indent=1))
+        return 0
+    head = "fixture  method  frames  all4 RMS/max px (n)  predicted RMS/max px (n, none)  hold ok"
+    print(head)
+    for r in rows:
+        a, p = r["all4"], r["predicted"]
+        print(
+            f"{Path(r['fixture']).name}  {r['method']}  {r['frames']}  "
+            f"{a['rms_px']:.2f}/{a['max_px']:.2f} ({a['with_cursor']}/{a['frames']})  "
+            f"{p['rms_px']:.2f}/{p['max_px']:.2f} ({p['with_cursor']}/{p['frames']}, "
+            f"{p['no_cursor']})  "
+            f"{r['hold_frames'] - r['hold_violations']}/{r['hold_frames']}"
+            + (f"  FALSE CURSORS {r['false_cursors']}" if r["false_cursors"] else "")
+        )
     return 0

@@ -305,13 +305,111 @@ def _similarity(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[n
     return np.hstack([R, t[:, None]])
 
 
+def _rays(p: NDArray[np.float64], f: float, c: tuple[float, float]) -> NDArray[np.float64]:
+    """Unit viewing rays (N x 3) of image points (N x 2, px) of a pinhole camera."""
+    d = np.column_stack([(p[:, 0] - c[0]) / f, (p[:, 1] - c[1]) / f, np.ones(len(p))])
+    out: NDArray[np.float64] = d / np.linalg.norm(d, axis=1, keepdims=True)
+    return out
+
+
+def rotate_points(
+    p: NDArray[np.float64], R: NDArray[np.float64], f: float, c: tuple[float, float]
+) -> NDArray[np.float64]:
+    """Image points (N x 2, px) after the camera turned by R about its center."""
+    d = _rays(p, f, c) @ R.T
+    z = np.where(d[:, 2] > 1e-6, d[:, 2], 1e-6)
+    return np.column_stack([c[0] + f * d[:, 0] / z, c[1] + f * d[:, 1] / z])
+
+
+def rotation_between(
+    src: NDArray[np.float64], dst: NDArray[np.float64], f: float, c: tuple[float, float]
+) -> NDArray[np.float64]:
+    """The camera rotation (3 x 3) about its center that best carries ``src`` onto ``dst``.
+
+    Points (N x 2, N >= 2) in pixels of a pinhole camera with focal length f and
+    principal point c. Least squares on the viewing rays (orthogonal
+    Procrustes / Kabsch), which is exact for a camera turning in place, the way
+    a hand aims a webcam.
+    """
+    a, b = _rays(src, f, c), _rays(dst, f, c)
+    U, _, Vt = np.linalg.svd(b.T @ a)
+    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))])
+    R: NDArray[np.float64] = U @ D @ Vt
+    return R
+
+
+def _bar_length(n: int, r: float) -> int:
+    """Sampling-bar length for a landmark of radius ``r`` px: ``n``, shortened (even, >= 2)
+    so that its inner half stays inside a small disc (r < n/2 + 1 at 320 x 240)."""
+    return max(2, min(n, 2 * int(0.7 * r)))
+
+
+def _similarity_lsq(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The 2 x 3 least-squares similarity taking points ``src`` (N x 2) onto ``dst``, N >= 2.
+
+    As complex numbers, dst = a src + b with a = s e^{i theta}: linear least
+    squares about the centroids.
+    """
+    zs = src[:, 0] + 1j * src[:, 1]
+    zd = dst[:, 0] + 1j * dst[:, 1]
+    ms, md = zs.mean(), zd.mean()
+    den = np.sum(np.abs(zs - ms) ** 2)
+    a = complex(np.sum(np.conj(zs - ms) * (zd - md)) / den) if den > 1e-12 else 1 + 0j
+    b = md - a * ms
+    return np.array([[a.real, -a.imag, b.real], [a.imag, a.real, b.imag]])
+
+
+def refine_center(
+    gray: NDArray[np.uint8], x: float, y: float, r: float, iterations: int = 2
+) -> tuple[float, float]:
+    """The dark disc's centroid near (x, y) (px): sub-pixel and unbiased by motion blur.
+
+    The template's best score is flat along a motion-blurred streak, so its
+    peak wanders along it; the centroid of darkness, w = clip((hi - I) / (hi -
+    lo), 0, 1) with lo/hi the 5th/95th grey percentiles, inside a circle of
+    radius 1.4 r (inside the landmark's white square), is symmetric about the
+    streak's middle. Iterated from the template's center. ``r`` should be the
+    disc's radius from the landmark geometry (:attr:`LandmarkTracker.disc_radii`):
+    the template's whole-pixel radius may be 0.7 px too big, which at 320 x 240
+    lets the circle reach the dark bezel.
+    """
+    H, W = gray.shape[:2]
+    R = math.ceil(1.4 * r)
+    for _ in range(iterations):
+        ix, iy = round(x), round(y)
+        if ix - R < 0 or iy - R < 0 or ix + R >= W or iy + R >= H:
+            break
+        patch = gray[iy - R : iy + R + 1, ix - R : ix + R + 1].astype(np.float32)
+        lo, hi = np.percentile(patch, (5, 95))
+        if hi - lo < 1:
+            break
+        w = np.clip((hi - patch) / (hi - lo), 0, 1) * _disc_mask(R, 1.4 * r)
+        total = float(w.sum())
+        if total <= 0:
+            break
+        g = np.arange(-R, R + 1, dtype=np.float32)
+        x = ix + float((w.sum(axis=0) * g).sum()) / total
+        y = iy + float((w.sum(axis=1) * g).sum()) / total
+    return x, y
+
+
+@lru_cache(maxsize=64)
+def _disc_mask(R: int, radius: float) -> NDArray[np.float32]:
+    g = np.arange(-R, R + 1, dtype=np.float32)
+    m = (g[None, :] ** 2 + g[:, None] ** 2 <= radius * radius).astype(np.float32)
+    m.setflags(write=False)
+    return m
+
+
 @dataclass
 class LandmarkTracker:
     """Tracks the four landmarks (TL, TR, BR, BL) frame to frame with prediction.
 
     Attributes:
         centers: last positions (4 x 2), found or predicted; None before the first lock.
-        radius: landmark radius in pixels (from detection, updated by tracking).
+        radius: median landmark radius in pixels.
+        radii: each landmark's radius in pixels (from detection, updated by
+            tracking: an oblique view makes the far landmarks smaller).
         found: which landmarks were found (not predicted) in the last frame.
         contrast: running mean edge contrast of found landmarks; a hit below
             ``relative_contrast`` of it (a landmark cut by the image border)
@@ -322,17 +420,72 @@ class LandmarkTracker:
     min_contrast: float = 25.0
     relative_contrast: float = 0.6
     predict: str = "similarity"
+    motion: bool = True
+    consistency: bool = True
+    focal_px: float | None = None
+    disc_radii: NDArray[np.float64] | None = None
+    principal: tuple[float, float] = (0.0, 0.0)
+    refine: bool = True
     centers: NDArray[np.float64] | None = None
+    previous: NDArray[np.float64] | None = None
     contrast: float = 0.0
     radius: float = 0.0
+    radii: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))
     found: list[bool] = field(default_factory=lambda: [False] * 4)
 
-    def lock(self, centers: NDArray[np.float64], radius: float) -> None:
+    def lock(self, centers: NDArray[np.float64], radius: float | NDArray[np.float64]) -> None:
         """Start tracking from the detection stage's four centers (TL, TR, BR, BL)."""
         self.centers = np.asarray(centers, np.float64).reshape(4, 2).copy()
-        self.radius = float(radius)
+        self.previous = None
+        self.radii = np.broadcast_to(np.asarray(radius, np.float64), (4,)).copy()
+        self.radius = float(np.median(self.radii))
         self.found = [True] * 4
         self.contrast = 0.0
+
+    def _outliers(self, new: NDArray[np.float64], found: list[bool]) -> list[int]:
+        """Found landmarks whose move disagrees with the others' (a false match).
+
+        With four landmarks found in both frames, each three of them give a
+        least-squares similarity of their move; the three that agree best
+        (least internal residual) judge the fourth, which is dropped when it
+        lies farther than the tolerance plus twice that internal residual from
+        where their move carries it. A landmark found again after being
+        predicted must likewise lie within the tolerance of where the reliable
+        ones' move carries its predicted position. Frame to frame a hand-held
+        view changes by nearly a similarity; the tolerance, max(4 px, 0.8
+        radius) + 15 % of the median move, allows for the perspective change
+        of a fast turn and for motion blur.
+        """
+        assert self.centers is not None
+        idx = [i for i, ok in enumerate(found) if ok and self.found[i]]
+        back = [i for i, ok in enumerate(found) if ok and not self.found[i]]
+        if len(idx) < 2:
+            return []
+        old = self.centers
+        move = float(np.median(np.hypot(*(new[idx] - old[idx]).T)))
+        tol = max(4.0, 0.8 * self.radius) + 0.15 * move
+        dropped: list[int] = []
+        if len(idx) == 4:
+            best: tuple[float, int, float] | None = None
+            for i in idx:
+                rest = [j for j in idx if j != i]
+                M = _similarity_lsq(old[rest], new[rest])
+                fit = old[rest] @ M[:, :2].T + M[:, 2] - new[rest]
+                internal = float(np.sqrt(np.mean(np.sum(fit * fit, axis=1))))
+                res = float(np.hypot(*(M[:, :2] @ old[i] + M[:, 2] - new[i])))
+                if best is None or internal < best[0]:
+                    best = (internal, i, res)
+            assert best is not None
+            internal, i, res = best
+            if res > tol + 2 * internal:
+                dropped.append(i)
+                idx.remove(i)
+        if back:
+            M = _similarity_lsq(old[idx], new[idx])
+            for i in back:
+                if np.hypot(*(M[:, :2] @ old[i] + M[:, 2] - new[i])) > tol:
+                    dropped.append(i)
+        return dropped
 
     def update(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
         """The four centers in this frame (missing ones predicted), or None on failure.
@@ -342,11 +495,22 @@ class LandmarkTracker:
         """
         if self.centers is None:
             return None
+        # Beyond the dissertation (which centres each window on the last position):
+        # centre it where the last frame-to-frame move carries the landmark, so a
+        # fast sweep does not leave the window or land on the bezel next to it.
+        guess = self.centers
+        if self.motion and self.previous is not None:
+            guess = self.centers + (self.centers - self.previous)
         hits = [
             track_circle(
-                gray, float(cx), float(cy), self.radius, n=self.n, min_contrast=self.min_contrast
+                gray,
+                float(cx),
+                float(cy),
+                float(r),
+                n=_bar_length(self.n, float(r)),
+                min_contrast=self.min_contrast,
             )
-            for cx, cy in self.centers
+            for (cx, cy), r in zip(guess, self.radii, strict=True)
         ]
         # A landmark cut by the image border still half-fits the template: a hit
         # must reach a good part of the contrast the landmarks had so far.
@@ -356,12 +520,30 @@ class LandmarkTracker:
         if sum(found) < 2:
             self.found = found
             return None
+        if self.refine:
+            disc = [None] * 4 if self.disc_radii is None else list(self.disc_radii)
+            hits = [
+                None
+                if h is None
+                else Circle(
+                    *refine_center(gray, h.x, h.y, h.r if rd is None else float(rd)),
+                    h.r,
+                    h.contrast,
+                )
+                for h, rd in zip(hits, disc, strict=True)
+            ]
         new = self.centers.copy()
-        moves = []
         for i, h in enumerate(hits):
             if h is not None:
-                moves.append((h.x - self.centers[i, 0], h.y - self.centers[i, 1]))
                 new[i] = (h.x, h.y)
+        if self.consistency:
+            for i in self._outliers(new, found):
+                found[i], hits[i], new[i] = False, None, self.centers[i]
+        moves = [
+            (h.x - self.centers[i, 0], h.y - self.centers[i, 1])
+            for i, h in enumerate(hits)
+            if h is not None
+        ]
         missing = [i for i, ok in enumerate(found) if not ok]
         if missing and self.predict == "similarity":
             # rotation, scale and shift of the found landmarks since the last frame
@@ -380,18 +562,27 @@ class LandmarkTracker:
                 for i in missing:
                     new[i] = M[:, :2] @ self.centers[i] + M[:, 2]
                 missing = []
+        if missing and self.predict == "rotation":
+            idx = [i for i, ok in enumerate(found) if ok]
+            f = self.focal_px or 0.0
+            if f > 0:
+                R = rotation_between(self.centers[idx], new[idx], f, self.principal)
+                new[missing] = rotate_points(self.centers[missing], R, f, self.principal)
+                missing = []
         if missing:  # the dissertation's prediction: the found landmarks' displacement
             shift = np.mean(np.array(moves), axis=0)
             for i in missing:
                 new[i] = self.centers[i] + shift
-        radii = [h.r for h in hits if h is not None]
-        self.radius = float(np.median(radii))
+        for i, h in enumerate(hits):
+            if h is not None:
+                self.radii[i] = h.r
+        self.radius = float(np.median(self.radii))
         contrasts = [h.contrast for h in hits if h is not None]
         self.contrast = (
             float(np.median(contrasts))
             if self.contrast == 0
             else max(0.9 * self.contrast + 0.1 * float(np.median(contrasts)), 0.0)
         )
-        self.centers = new
+        self.previous, self.centers = self.centers, new
         self.found = found
         return new.copy()

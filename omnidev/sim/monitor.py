@@ -64,6 +64,21 @@ VARIANTS = ("normal", "no-monitor", "three-landmarks")
 SCREEN_CENTER = np.array([SCREEN_W / 2, SCREEN_H / 2, 0.0])
 
 
+def landmark_layout() -> dict[str, Any]:
+    """The scene's landmark layout in the form of omnidev.mouse.landmarks.LandmarkLayout
+    (mm): what ``omnidev mouse --layout`` reads for these fixtures."""
+    return {
+        "screen_width_mm": SCREEN_W * 1000,
+        "screen_height_mm": SCREEN_H * 1000,
+        "offsets_mm": {
+            k: [ox * 1000, oy * 1000]
+            for k, (ox, oy) in zip(("tl", "tr", "br", "bl"), LANDMARK_OFFSETS, strict=True)
+        },
+        "circle_diameter_mm": LANDMARK_RADIUS * 2000,
+        "square_side_mm": LANDMARK_SQUARE * 1000,
+    }
+
+
 def landmark_centers() -> FloatArray:
     """The four landmark disc centres (4, 3) in world metres, in LANDMARK_NAMES order."""
     return np.array(
@@ -532,9 +547,10 @@ def make_mouse_fixture(
 ) -> dict[str, Any]:
     """Render a camera-mouse fixture folder atomically; returns what truth.json holds.
 
-    Files: mouse.avi (MJPG), mouse_0000.png (frame 0, lossless) and truth.json
+    Files: mouse.avi (MJPG), mouse_0000.png (frame 0, lossless), truth.json
     (camera intrinsics and distortion, monitor and landmark geometry, per-frame
-    truth, the command that regenerates the folder).
+    truth, the command that regenerates the folder) and landmarks.json (the
+    landmark layout ``omnidev mouse --layout`` reads).
     """
     if trajectory not in TRAJECTORIES:
         raise OutputError(
@@ -602,4 +618,5 @@ def make_mouse_fixture(
             f"--frames {frames} --fps {fps:g} --seed {seed} --scene {variant} --force",
         }
         (tmp / "truth.json").write_text(json.dumps(doc, indent=1) + "\n")
+        (tmp / "landmarks.json").write_text(json.dumps(landmark_layout(), indent=2) + "\n")
     return doc

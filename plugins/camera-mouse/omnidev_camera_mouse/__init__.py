@@ -8,16 +8,30 @@ detects again on the next frame. The cursor is the image center in screen
 coordinates, by the dissertation's affine correction (eqs. 6.1-6.4) or by the
 homography of the four screen corners (``method``).
 
+Re-detection when tracking confidence falls: while landmarks are being
+predicted, the detection stage runs every ``redetect_every`` frames and
+re-locks when it finds all four (predictions drift; a landmark back in the
+picture may be far from its predicted place). A tracked set that is no longer a
+plausible landmark quadrilateral (not convex, sides collapsed, or its shape
+jumping between frames: a landmark captured by similar screen content) is
+dropped at once and the same frame goes to detection.
+
 Calibration file: the landmark layout (JSON or TOML with the keys of
 :meth:`omnidev.mouse.landmarks.LandmarkLayout.to_dict`: screen size, landmark
 offsets from the screen corners, circle and square sizes, all in mm).
 
-Options: ``method`` ("homography", default, or "affine").
+Options: ``method`` ("homography", default, or the dissertation's "affine");
+``predict`` ("rotation", default: the camera turning about its center, fitted to
+the landmarks found; "similarity"; or the dissertation's "translation");
+``fov_deg`` (the webcam's horizontal field of view for "rotation", default 60);
+``redetect_every`` (frames, default 5; 0 turns re-detection while predicting
+off).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -33,30 +47,58 @@ from omnidev.mouse.geometry import cursor_from_corners, image_center, screen_cor
 from omnidev.mouse.landmarks import LandmarkLayout
 from omnidev.mouse.track import LandmarkTracker
 
+PREDICTIONS = ("rotation", "similarity", "translation")
+
 
 class CameraMouse:
     """Detection, tracking with prediction, and the cursor (see the module docstring)."""
 
-    def __init__(self, layout: LandmarkLayout, method: str = "homography") -> None:
+    def __init__(
+        self,
+        layout: LandmarkLayout,
+        method: str = "homography",
+        predict: str = "rotation",
+        redetect_every: int = 5,
+        fov_deg: float = 60.0,
+    ) -> None:
         if method not in ("homography", "affine"):
             raise TrackerError(f"camera-mouse: method must be homography or affine, got {method!r}")
+        if predict not in PREDICTIONS:
+            raise TrackerError(
+                f"camera-mouse: predict must be one of {', '.join(PREDICTIONS)}, got {predict!r}"
+            )
+        if not 10.0 <= fov_deg <= 170.0:
+            raise TrackerError(f"camera-mouse: fov_deg must be 10..170 degrees, got {fov_deg}")
+        if redetect_every < 0:
+            raise TrackerError(f"camera-mouse: redetect_every must be >= 0, got {redetect_every}")
         self.layout = layout
         self.method = method
-        self.tracker = LandmarkTracker()
+        self.redetect_every = redetect_every
+        self.fov_deg = fov_deg
+        self.tracker = LandmarkTracker(predict=predict)
         self.locked = False
         self.size: tuple[int, int] | None = None
+        self._weak = 0  # consecutive frames with predicted landmarks
+        self.relocks = 0  # re-detections that replaced a tracked set (for figures)
 
-    def _radius_px(self, centers: NDArray[np.float64]) -> float:
-        """Landmark radius in pixels: its mm radius times the pixels per mm along the sides."""
+    def _radius_px(self, centers: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Each landmark's radius in pixels: its mm radius times the pixels per mm along
+        the two sides that meet at it (an oblique view makes the far ones smaller)."""
         mm = self.layout.landmark_centers_mm()
         px_side = np.linalg.norm(np.roll(centers, -1, axis=0) - centers, axis=1)
         mm_side = np.linalg.norm(np.roll(mm, -1, axis=0) - mm, axis=1)
-        return float(self.layout.circle_diameter_mm / 2 * np.mean(px_side / mm_side))
+        scale = px_side / mm_side  # side i joins landmarks i and i + 1
+        radii: NDArray[np.float64] = (
+            self.layout.circle_diameter_mm / 2 * (scale + np.roll(scale, 1)) / 2
+        )
+        return radii
 
     def track(self, frame: Frame) -> PointerSample | None:
         h, w = frame.image.shape[:2]
         if self.size is None:
             self.size = (w, h)
+            self.tracker.focal_px = (w / 2) / math.tan(math.radians(self.fov_deg) / 2)
+            self.tracker.principal = ((w - 1) / 2, (h - 1) / 2)
         elif self.size != (w, h):
             raise TrackerError(
                 f"camera-mouse: frame {frame.index} is {w}x{h}, the stream was "
@@ -65,17 +107,36 @@ class CameraMouse:
         gray = to_gray(frame.image)
         centers: NDArray[np.float64] | None = None
         if self.locked:
+            last = self.tracker.centers
             centers = self.tracker.update(gray)
             if centers is None:
                 self.locked = False  # three or more missing: detect again next frame
                 return None
-        else:
+            if not _plausible(centers, last, self.tracker.radius):
+                self.locked = False  # captured by something else: detect on this frame
+                centers = None
+            elif all(self.tracker.found):
+                self._weak = 0
+            else:
+                self._weak += 1
+                if self.redetect_every and self._weak % self.redetect_every == 0:
+                    det = detect_landmarks(frame.image, self.layout)
+                    if det is not None:
+                        centers = det.centers
+                        self.tracker.lock(centers, self._radius_px(centers))
+                        self._weak = 0
+                        self.relocks += 1
+        if not self.locked:
             det = detect_landmarks(frame.image, self.layout)  # colour edges help step 6
             if det is None:
                 return None
             centers = det.centers
             self.tracker.lock(centers, self._radius_px(centers))
             self.locked = True
+            self._weak = 0
+        assert centers is not None
+        # the discs' radii from the landmark geometry, for next frame's sub-pixel step
+        self.tracker.disc_radii = self._radius_px(centers)
         corners = screen_corners_from_landmarks(centers, self.layout)
         uv = cursor_from_corners(corners, image_center(w, h), method=self.method)  # type: ignore[arg-type]
         if not np.all(np.isfinite(uv)):
@@ -90,6 +151,31 @@ class CameraMouse:
     def reset(self) -> None:
         self.locked = False
         self.size = None
+        self._weak = 0
+
+
+def _plausible(
+    centers: NDArray[np.float64], last: NDArray[np.float64] | None, radius: float
+) -> bool:
+    """Whether tracked centers (TL, TR, BR, BL, px) can still be the landmarks.
+
+    The quadrilateral must stay convex and clockwise in the image (y down), no
+    side may shrink below two landmark diameters, and no side may change its
+    length by more than a third between frames (a hand cannot do that in 1/30 s;
+    one landmark captured by screen content does).
+    """
+    d = np.roll(centers, -1, axis=0) - centers
+    cross = d[:, 0] * np.roll(d, -1, axis=0)[:, 1] - d[:, 1] * np.roll(d, -1, axis=0)[:, 0]
+    if not np.all(cross > 0):
+        return False
+    sides = np.linalg.norm(d, axis=1)
+    if np.any(sides < 4 * radius):
+        return False
+    if last is not None:
+        before = np.linalg.norm(np.roll(last, -1, axis=0) - last, axis=1)
+        if np.any(np.abs(sides / np.maximum(before, 1e-9) - 1.0) > 1 / 3):
+            return False
+    return True
 
 
 def load_layout(path: Path) -> LandmarkLayout:
@@ -110,12 +196,34 @@ def load_layout(path: Path) -> LandmarkLayout:
 
 def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> CameraMouse:
     """Entry point: the calibration is the landmark layout file; option ``method``."""
-    unknown = set(options) - {"method"}
+    unknown = set(options) - {"method", "predict", "redetect_every", "fov_deg"}
     if unknown:
-        raise TrackerError(f"camera-mouse: unknown option {sorted(unknown)[0]!r} (options: method)")
+        raise TrackerError(
+            f"camera-mouse: unknown option {sorted(unknown)[0]!r} "
+            "(options: method, predict, fov_deg, redetect_every)"
+        )
+    try:
+        fov = float(options.get("fov_deg", 60.0))
+    except (TypeError, ValueError):
+        raise TrackerError(
+            f"camera-mouse: fov_deg must be a number of degrees, got {options['fov_deg']!r}"
+        ) from None
+    try:
+        redetect = int(options.get("redetect_every", 5))
+    except (TypeError, ValueError):
+        raise TrackerError(
+            f"camera-mouse: redetect_every must be a whole number of frames, "
+            f"got {options['redetect_every']!r}"
+        ) from None
     if calibration is None:
         raise TrackerError(
             "camera-mouse: needs the landmark layout as its calibration file "
             '([tracker] calibration = "landmarks.json": screen size and landmark offsets in mm)'
         )
-    return CameraMouse(load_layout(calibration), str(options.get("method", "homography")))
+    return CameraMouse(
+        load_layout(calibration),
+        str(options.get("method", "homography")),
+        str(options.get("predict", "rotation")),
+        redetect,
+        fov,
+    )
