@@ -14,7 +14,7 @@ from omnidev.sim.handcam import HandCamera
 
 @pytest.mark.parametrize("n", [2, 4, 6, 8])
 @pytest.mark.parametrize("r", [4, 5, 6, 7, 9, 12, 16, 23, 31])
-def test_pieces_hold_exactly_the_kernels_taps(r, n):
+def test_pieces_hold_exactly_the_kernels_taps(r: int, n: int) -> None:
     if r < n // 2 + 1:
         pytest.skip(f"radius {r} is below the smallest the tracker uses with n={n} (n/2 + 1)")
     k = template_kernel(r, n)
@@ -52,7 +52,7 @@ BORDER = [(2.0, 3.0), (637.0, 240.5), (320.0, 478.2), (12.4, 470.0), (630.0, 6.0
     "trajectory,index",
     [("drift", 0), ("drift", 17), ("sweep", 9), ("roll", 20), ("oblique", 25), ("partial", 40)],
 )
-def test_pieces_and_whole_kernel_give_the_same_centers(trajectory, index):
+def test_pieces_and_whole_kernel_give_the_same_centers(trajectory: str, index: int) -> None:
     gray, uv = rendered(trajectory, index)
     starts = [
         (u + sx * r, v + sy * r, r)
@@ -75,7 +75,7 @@ def test_pieces_and_whole_kernel_give_the_same_centers(trajectory, index):
     assert found >= len(RADII) * len([p for p in uv if p is not None])  # not vacuous
 
 
-def test_unknown_correlation_is_refused():
+def test_unknown_correlation_is_refused() -> None:
     gray = np.full((100, 100), 128, np.uint8)
     with pytest.raises(ValueError, match="correlate"):
         track_circle(gray, 50.0, 50.0, 6.0, correlate="fft")  # type: ignore[arg-type]
