@@ -157,7 +157,12 @@ def test_frames_are_deterministic_from_the_seed() -> None:
 def test_fixture_writer(tmp_path: Path) -> None:
     out = tmp_path / "mouse"
     doc = make_mouse_fixture(out, trajectory="sweep", size=(160, 120), frames=3, seed=1)
-    assert sorted(p.name for p in out.iterdir()) == ["mouse.avi", "mouse_0000.png", "truth.json"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "landmarks.json",
+        "mouse.avi",
+        "mouse_0000.png",
+        "truth.json",
+    ]
     truth = json.loads((out / "truth.json").read_text())
     assert truth == json.loads(json.dumps(doc))
     assert len(truth["per_frame"]) == 3 and truth["camera"]["distortion"][0] == CAM.k1

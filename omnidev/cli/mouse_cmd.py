@@ -52,6 +52,21 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--screen", default="1920x1080+0+0", help="target screen WxH+X+Y")
     p.add_argument("--filter", choices=("one-euro", "none"), default="one-euro")
+    p.add_argument(
+        "--buttons",
+        default="",
+        metavar="SPEC",
+        help="pointer buttons from a key or HID remote, e.g. "
+        "'evdev:/dev/input/event3?KEY_SPACE=left' (see docs/buttons.md)",
+    )
+    p.add_argument("--dwell", action="store_true", help="click when the cursor rests")
+    p.add_argument("--dwell-s", type=float, default=0.8, help="dwell time, s (default 0.8)")
+    p.add_argument(
+        "--dwell-radius-px",
+        type=float,
+        default=12.0,
+        help="the cursor rests while it stays within this radius, screen px (default 12)",
+    )
     p.set_defaults(func=run)
     ev = sub.add_parser(
         "mouse-eval",
@@ -120,6 +135,12 @@ def run(args: argparse.Namespace) -> int:
         "filter": {"kind": args.filter},
         "sink": {"name": args.sink, "options": options},
         "screen": {"rect": args.screen},
+        "buttons": {
+            "input": args.buttons,
+            "dwell": args.dwell,
+            "dwell_s": args.dwell_s,
+            "dwell_radius_px": args.dwell_radius_px,
+        },
     }
     config = parse_config(doc, Path("omnidev mouse"))
     pipeline = Pipeline(config)
@@ -146,8 +167,9 @@ def run(args: argparse.Namespace) -> int:
         for s, h in old.items():
             signal.signal(s, h)
     st = pipeline.status()
+    clicks = f", {st['dwell_clicks']} dwell clicks" if args.dwell else ""
     print(
-        f"{st['frames']} frames, {st['tracked']} cursor positions, latency p50 "
+        f"{st['frames']} frames, {st['tracked']} cursor positions{clicks}, latency p50 "
         f"{st['latency_p50_ms']} ms; buttons released",
         file=sys.stderr,
     )
@@ -241,7 +263,9 @@ def evaluate_fixture(
         raise OmnidevError(
             f"{folder / 'mouse.avi'}: {len(cursors)} frames, truth.json has {len(truth)}"
         )
-    figures = evaluate(cursors, truth).as_dict()
+    cam = doc.get("camera", {})
+    size = (int(cam["width"]), int(cam["height"])) if "width" in cam else None
+    figures = evaluate(cursors, truth, image_size=size).as_dict()
     figures.update(
         fixture=str(folder), method=method, predict=predict, fov_deg=fov_deg, frames=len(truth)
     )
@@ -260,16 +284,24 @@ def run_eval(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(rows, indent=1))
         return 0
-    head = "fixture  method  frames  all4 RMS/max px (n)  predicted RMS/max px (n, none)  hold ok"
-    print(head)
+
+    def fig(c: dict[str, Any]) -> str:
+        if not c["with_cursor"]:
+            return f"{'-':>13} {c['with_cursor']:>3}/{c['frames']:<3}"
+        return f"{c['rms_px']:6.2f}/{c['max_px']:6.2f} {c['with_cursor']:>3}/{c['frames']:<3}"
+
+    width = max(len(Path(r["fixture"]).name) for r in rows)
+    print(
+        f"{'fixture':<{width}}  {'method':<10}  {'all four visible':>21}  "
+        f"{'1-2 predicted':>21}  {'3+ missing: held':>16}"
+    )
+    print(f"{'':<{width}}  {'':<10}  {'RMS/max px cursors':>21}  {'RMS/max px cursors':>21}")
     for r in rows:
-        a, p = r["all4"], r["predicted"]
+        held = f"{r['hold_frames'] - r['hold_violations']}/{r['hold_frames']}"
         print(
-            f"{Path(r['fixture']).name}  {r['method']}  {r['frames']}  "
-            f"{a['rms_px']:.2f}/{a['max_px']:.2f} ({a['with_cursor']}/{a['frames']})  "
-            f"{p['rms_px']:.2f}/{p['max_px']:.2f} ({p['with_cursor']}/{p['frames']}, "
-            f"{p['no_cursor']})  "
-            f"{r['hold_frames'] - r['hold_violations']}/{r['hold_frames']}"
+            f"{Path(r['fixture']).name:<{width}}  {r['method']:<10}  {fig(r['all4']):>21}  "
+            f"{fig(r['predicted']):>21}  {held:>16}"
             + (f"  FALSE CURSORS {r['false_cursors']}" if r["false_cursors"] else "")
         )
+    print("(errors in px of a 1920x1080 screen; cursors = frames with a cursor / frames)")
     return 0

@@ -8,6 +8,8 @@ from typing import Any
 
 
 def register(sub: Any) -> None:
+    from omnidev.sim.monitor import TRAJECTORIES, VARIANTS
+
     p = sub.add_parser("sim", help="render fixtures with ground truth")
     ssub = p.add_subparsers(dest="what", metavar="WHAT", required=True)
     o = ssub.add_parser("omni", help="an omni-camera video of a textured room, with truth")
@@ -34,13 +36,13 @@ def register(sub: Any) -> None:
     m.add_argument(
         "--trajectory",
         default="drift",
-        choices=("drift", "sweep", "roll", "oblique", "partial"),
-        help="how the hand moves the camera",
+        choices=TRAJECTORIES,
+        help="how the hand moves the camera (see omnidev.sim.monitor.trajectory_pose)",
     )
     m.add_argument(
         "--scene",
         default="normal",
-        choices=("normal", "no-monitor", "three-landmarks"),
+        choices=VARIANTS,
         help="what is in front of the camera (the last two must produce no cursor)",
     )
     m.add_argument("--size", default="640x480", metavar="WxH")

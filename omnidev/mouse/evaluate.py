@@ -11,7 +11,11 @@ the picture):
 - ``all4``: four visible; the cursor should be within ~2 px.
 - ``predicted``: two or three visible; the missing ones are predicted (sec. 6.2.5).
 - ``hold``: one or none visible; the tracker must give no cursor (the pointer
-  holds its last position).
+  holds its last position). "Visible" means the whole white square is in the
+  picture; a square cut by the image border may leave its disc trackable, so a
+  cursor on a hold frame counts as a violation only when fewer than two
+  landmark centres are inside the picture (``image_size`` given); otherwise its
+  error is counted with the ``predicted`` class.
 """
 
 from __future__ import annotations
@@ -59,6 +63,7 @@ class MouseFigures:
     predicted: ClassFigures = field(default_factory=ClassFigures)
     hold: ClassFigures = field(default_factory=ClassFigures)
     no_truth_cursor: int = 0  # cursors on frames with no screen point (no monitor)
+    hold_with_discs: int = 0  # hold frames with a cursor from two discs whose squares are cut
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -66,6 +71,7 @@ class MouseFigures:
             "predicted": self.predicted.as_dict(),
             "hold_frames": self.hold.frames,
             "hold_violations": len(self.hold.errors_px),
+            "hold_frames_tracked_on_cut_squares": self.hold_with_discs,
             "false_cursors": self.no_truth_cursor,
         }
 
@@ -78,10 +84,20 @@ def cursor_error_px(
     return math.hypot((xy[0] - truth_xy[0]) * (w - 1), (xy[1] - truth_xy[1]) * (h - 1))
 
 
+def _centres_inside(t: Mapping[str, Any], image_size: tuple[int, int]) -> int:
+    w, h = image_size
+    return sum(
+        1
+        for uv in t["landmarks_uv"]
+        if uv is not None and 0 <= uv[0] <= w - 1 and 0 <= uv[1] <= h - 1
+    )
+
+
 def evaluate(
     cursors: Sequence[tuple[float, float] | None],
     truth: Sequence[Mapping[str, Any]],
     screen_px: tuple[int, int] = (1920, 1080),
+    image_size: tuple[int, int] | None = None,
 ) -> MouseFigures:
     """Figures for one video: ``cursors[i]`` is frame i's normalized cursor or None.
 
@@ -96,6 +112,16 @@ def evaluate(
         nv = sum(bool(v) for v in t["visible"])
         cls = fig.all4 if nv == 4 else fig.predicted if nv >= 2 else fig.hold
         cls.frames += 1
+        if (
+            cls is fig.hold
+            and c is not None
+            and image_size is not None
+            and _centres_inside(t, image_size) >= 2
+            and t["screen_xy"] is not None
+        ):
+            fig.predicted.errors_px.append(cursor_error_px(c, t["screen_xy"], screen_px))
+            fig.hold_with_discs += 1
+            continue
         if c is None:
             cls.no_cursor += 1
             continue

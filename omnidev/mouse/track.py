@@ -37,6 +37,7 @@ Coordinates: image pixels, x right, y down, origin at the top-left pixel's cente
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Literal
@@ -350,13 +351,19 @@ def _similarity_lsq(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArr
     As complex numbers, dst = a src + b with a = s e^{i theta}: linear least
     squares about the centroids.
     """
-    zs = src[:, 0] + 1j * src[:, 1]
-    zd = dst[:, 0] + 1j * dst[:, 1]
-    ms, md = zs.mean(), zd.mean()
-    den = np.sum(np.abs(zs - ms) ** 2)
-    a = complex(np.sum(np.conj(zs - ms) * (zd - md)) / den) if den > 1e-12 else 1 + 0j
-    b = md - a * ms
+    a, b = _similarity_c([complex(*p) for p in src], [complex(*p) for p in dst])
     return np.array([[a.real, -a.imag, b.real], [a.imag, a.real, b.imag]])
+
+
+def _similarity_c(zs: list[complex], zd: list[complex]) -> tuple[complex, complex]:
+    """(a, b) of the least-squares dst = a src + b on complex points (plain Python: the
+    tracker calls it a dozen times a frame on four points, where numpy costs more)."""
+    n = len(zs)
+    ms, md = sum(zs) / n, sum(zd) / n
+    den = sum(abs(z - ms) ** 2 for z in zs)
+    a = sum((u - ms).conjugate() * (v - md) for u, v in zip(zs, zd, strict=True)) / den
+    a = a if den > 1e-12 else 1 + 0j
+    return a, md - a * ms
 
 
 def refine_center(
@@ -375,22 +382,35 @@ def refine_center(
     """
     H, W = gray.shape[:2]
     R = math.ceil(1.4 * r)
-    for _ in range(iterations):
+    mask = _disc_mask(R, 1.4 * r)
+    g = _offsets(R)
+    lo = hi = 0.0
+    for k in range(iterations):
         ix, iy = round(x), round(y)
         if ix - R < 0 or iy - R < 0 or ix + R >= W or iy + R >= H:
             break
         patch = gray[iy - R : iy + R + 1, ix - R : ix + R + 1].astype(np.float32)
-        lo, hi = np.percentile(patch, (5, 95))
-        if hi - lo < 1:
-            break
-        w = np.clip((hi - patch) / (hi - lo), 0, 1) * _disc_mask(R, 1.4 * r)
+        if k == 0:  # the grey levels of disc and square, from the first window
+            flat = patch.ravel()
+            i5, i95 = int(0.05 * (flat.size - 1)), int(0.95 * (flat.size - 1))
+            part = np.partition(flat, (i5, i95))
+            lo, hi = float(part[i5]), float(part[i95])
+            if hi - lo < 1:
+                break
+        w = np.clip((hi - patch) * (1.0 / (hi - lo)), 0, 1) * mask
         total = float(w.sum())
         if total <= 0:
             break
-        g = np.arange(-R, R + 1, dtype=np.float32)
-        x = ix + float((w.sum(axis=0) * g).sum()) / total
-        y = iy + float((w.sum(axis=1) * g).sum()) / total
+        x = ix + float(w.sum(axis=0) @ g) / total
+        y = iy + float(w.sum(axis=1) @ g) / total
     return x, y
+
+
+@lru_cache(maxsize=64)
+def _offsets(R: int) -> NDArray[np.float32]:
+    g = np.arange(-R, R + 1, dtype=np.float32)
+    g.setflags(write=False)
+    return g
 
 
 @lru_cache(maxsize=64)
@@ -422,6 +442,7 @@ class LandmarkTracker:
     predict: str = "similarity"
     motion: bool = True
     consistency: bool = True
+    back_tol: float = 2.0
     focal_px: float | None = None
     disc_radii: NDArray[np.float64] | None = None
     principal: tuple[float, float] = (0.0, 0.0)
@@ -438,41 +459,61 @@ class LandmarkTracker:
         self.centers = np.asarray(centers, np.float64).reshape(4, 2).copy()
         self.previous = None
         self.radii = np.broadcast_to(np.asarray(radius, np.float64), (4,)).copy()
-        self.radius = float(np.median(self.radii))
+        self.radius = statistics.median(self.radii.tolist())
         self.found = [True] * 4
         self.contrast = 0.0
 
-    def _outliers(self, new: NDArray[np.float64], found: list[bool]) -> list[int]:
+    def _outliers(
+        self, new: NDArray[np.float64], found: list[bool], guess: NDArray[np.float64]
+    ) -> list[int]:
         """Found landmarks whose move disagrees with the others' (a false match).
 
-        With four landmarks found in both frames, each three of them give a
-        least-squares similarity of their move; the three that agree best
-        (least internal residual) judge the fourth, which is dropped when it
-        lies farther than the tolerance plus twice that internal residual from
-        where their move carries it. A landmark found again after being
-        predicted must likewise lie within the tolerance of where the reliable
-        ones' move carries its predicted position. Frame to frame a hand-held
-        view changes by nearly a similarity; the tolerance, max(4 px, 0.8
-        radius) + 15 % of the median move, allows for the perspective change
-        of a fast turn and for motion blur.
+        Landmarks found in both frames are checked against their neighbours'
+        motion. With a velocity (two frames tracked), each one's surprise, its
+        position minus where its own last move would have carried it, should
+        equal the others': a hand's jerk or turn surprises all four alike,
+        while a landmark that jumped to screen content or the bezel stands
+        out. The worst is dropped while it lies farther than the tolerance
+        from the median surprise of the others, two landmarks always remain.
+        Right after a lock, the three whose moves agree best on a
+        least-squares similarity judge the fourth instead. A landmark found
+        again after being predicted must lie within ``back_tol`` tolerances of
+        where the reliable ones' move (a similarity) carries its predicted
+        position. The tolerance, max(5 px, radius) + 15 % of the median move,
+        allows for motion blur and the perspective change of a fast turn.
         """
         assert self.centers is not None
         idx = [i for i, ok in enumerate(found) if ok and self.found[i]]
         back = [i for i, ok in enumerate(found) if ok and not self.found[i]]
         if len(idx) < 2:
             return []
-        old = self.centers
-        move = float(np.median(np.hypot(*(new[idx] - old[idx]).T)))
-        tol = max(4.0, 0.8 * self.radius) + 0.15 * move
+        zo = [complex(*p) for p in self.centers]
+        zn = [complex(*p) for p in new]
+        move = statistics.median(abs(zn[i] - zo[i]) for i in idx)
+        tol = max(5.0, self.radius) + 0.15 * move
         dropped: list[int] = []
-        if len(idx) == 4:
+        if self.previous is not None and self.motion:
+            surprise = {i: zn[i] - complex(*guess[i]) for i in idx}
+            while len(idx) >= 3:
+                dev = []
+                for i in idx:
+                    others = [surprise[j] for j in idx if j != i]
+                    ref = complex(
+                        statistics.median(z.real for z in others),
+                        statistics.median(z.imag for z in others),
+                    )
+                    dev.append(abs(surprise[i] - ref))
+                worst = int(np.argmax(dev))
+                if dev[worst] <= tol:
+                    break
+                dropped.append(idx.pop(worst))
+        elif len(idx) == 4:
             best: tuple[float, int, float] | None = None
             for i in idx:
                 rest = [j for j in idx if j != i]
-                M = _similarity_lsq(old[rest], new[rest])
-                fit = old[rest] @ M[:, :2].T + M[:, 2] - new[rest]
-                internal = float(np.sqrt(np.mean(np.sum(fit * fit, axis=1))))
-                res = float(np.hypot(*(M[:, :2] @ old[i] + M[:, 2] - new[i])))
+                a, b = _similarity_c([zo[j] for j in rest], [zn[j] for j in rest])
+                internal = math.sqrt(sum(abs(a * zo[j] + b - zn[j]) ** 2 for j in rest) / 3)
+                res = abs(a * zo[i] + b - zn[i])
                 if best is None or internal < best[0]:
                     best = (internal, i, res)
             assert best is not None
@@ -481,10 +522,8 @@ class LandmarkTracker:
                 dropped.append(i)
                 idx.remove(i)
         if back:
-            M = _similarity_lsq(old[idx], new[idx])
-            for i in back:
-                if np.hypot(*(M[:, :2] @ old[i] + M[:, 2] - new[i])) > tol:
-                    dropped.append(i)
+            a, b = _similarity_c([zo[j] for j in idx], [zn[j] for j in idx])
+            dropped += [i for i in back if abs(a * zo[i] + b - zn[i]) > self.back_tol * tol]
         return dropped
 
     def update(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
@@ -537,7 +576,7 @@ class LandmarkTracker:
             if h is not None:
                 new[i] = (h.x, h.y)
         if self.consistency:
-            for i in self._outliers(new, found):
+            for i in self._outliers(new, found, guess):
                 found[i], hits[i], new[i] = False, None, self.centers[i]
         moves = [
             (h.x - self.centers[i, 0], h.y - self.centers[i, 1])
@@ -576,12 +615,12 @@ class LandmarkTracker:
         for i, h in enumerate(hits):
             if h is not None:
                 self.radii[i] = h.r
-        self.radius = float(np.median(self.radii))
+        self.radius = statistics.median(self.radii.tolist())
         contrasts = [h.contrast for h in hits if h is not None]
         self.contrast = (
-            float(np.median(contrasts))
+            statistics.median(contrasts)
             if self.contrast == 0
-            else max(0.9 * self.contrast + 0.1 * float(np.median(contrasts)), 0.0)
+            else 0.9 * self.contrast + 0.1 * statistics.median(contrasts)
         )
         self.previous, self.centers = self.centers, new
         self.found = found

@@ -58,7 +58,7 @@ LANDMARK_OFFSETS = (
     (-LANDMARK_INSET, LANDMARK_INSET),
 )
 SCREEN_CORNERS = ((0.0, 0.0), (SCREEN_W, 0.0), (SCREEN_W, SCREEN_H), (0.0, SCREEN_H))
-TRAJECTORIES = ("drift", "sweep", "roll", "oblique", "partial", "still")
+TRAJECTORIES = ("drift", "sweep", "roll", "oblique", "partial", "still", "excursion")
 # Scenes: the full monitor; the wall alone; the monitor with bottom_left's landmark removed.
 VARIANTS = ("normal", "no-monitor", "three-landmarks")
 SCREEN_CENTER = np.array([SCREEN_W / 2, SCREEN_H / 2, 0.0])
@@ -99,6 +99,9 @@ def trajectory_pose(name: str, t: float) -> Pose:
       deg, the direction of the tilt turning around over 9 s.
     - partial: 0.6 m away, aim wanders towards the edges so one or two
       landmarks leave the picture.
+    - excursion: 0.6 m away, the aim leaves the screen towards its bottom-right
+      corner and comes back every 3 s (0.45 m right, 0.3 m down at the
+      farthest): three or four landmarks leave the picture, then return.
     - still: 0.9 m away, a hand held still aiming near the screen centre: a slow
       sway below 0.3 Hz (aim angle ~0.1 deg plus a few mm of hand position:
       ~0.15-0.2 deg RMS of the optical axis per axis) and physiological tremor
@@ -137,6 +140,11 @@ def trajectory_pose(name: str, t: float) -> Pose:
         return look_at(C, aim, 5.0 * math.sin(tau * t / 7.0))
     if name == "still":
         return _still_pose(t)
+    if name == "excursion":
+        C = s + np.array([0.02 * math.sin(0.5 * t), 0.0, -0.6])
+        out = math.sin(math.pi * t / 3.0) ** 2
+        aim = s + np.array([0.45 * out, 0.3 * out, 0.0])
+        return look_at(C, aim, 3.0 * math.sin(t))
     raise OutputError(f"unknown camera-mouse trajectory {name!r} ({', '.join(TRAJECTORIES)})")
 
 
