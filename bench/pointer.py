@@ -124,7 +124,7 @@ def run(quick: bool = False) -> dict[str, Any]:
         doc = {
             "source": {"uri": f"video:{BLOB}?loop=1&rate=60"},
             "tracker": {"name": "bright-blob", "options": {"press_area": 700}},
-            "filter": {"kind": "one-euro", "min_cutoff": 1.0, "beta": 0.007},
+            "filter": {"kind": "one-euro"},
             "sink": {"name": "xtest", "options": {"display": display}},
             "screen": {"rect": "1920x1080+0+0"},
             "daemon": {"queue": 1},

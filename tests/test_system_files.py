@@ -453,7 +453,7 @@ def test_example_config_is_valid_and_complete():
     assert config.tracker == "bright-blob" and config.sink == "uinput"
     assert config.socket == DEFAULT_SOCKET
     assert set(doc) == {"source", "tracker", "filter", "sink", "screen", "daemon"}
-    assert doc["filter"] == {"kind": "one-euro", "min_cutoff": 1.0, "beta": 0.007, "d_cutoff": 1.0}
+    assert doc["filter"] == {"kind": "one-euro", "min_cutoff": 0.1, "beta": 20.0, "d_cutoff": 2.0}
     assert doc["daemon"] == {
         "socket": "/run/omnidev/control.sock",
         "queue": 1,

@@ -11,13 +11,22 @@ threshold = 200
 
 [filter]
 kind = "one-euro"             # or "none"
-min_cutoff = 1.0              # Hz
-beta = 0.007                  # s per screen width
-d_cutoff = 1.0                # Hz
+min_cutoff = 0.1              # Hz: the cutoff when still (lower: steadier)
+beta = 20.0                   # s per screen width: how fast the cutoff rises with speed
+d_cutoff = 2.0                # Hz: the cutoff of the speed estimate
+# (defaults tuned on the camera mouse at 30 fps: docs/camera-mouse.md, One Euro tuning)
 
 [sink]
 name = "uinput"               # a plugin of group omnidev.sinks
 [sink.options]                # passed to the sink as they are
+
+[buttons]                     # optional: pointer buttons from other inputs
+input = "evdev:/dev/input/by-id/usb-Some_Keyboard-event-kbd?KEY_SPACE=left"
+                              # or "hid:VVVV:PPPP?key.0x4e=left" (docs/buttons.md)
+dwell = false                 # click when the cursor rests ...
+dwell_s = 0.8                 # ... this long (s)
+dwell_radius_px = 12.0        # ... within this radius (target-screen px)
+dwell_button = "left"
 
 [screen]
 rect = "1920x1080+0+0"        # the target screen in the desktop layout (WxH+X+Y)
@@ -48,6 +57,7 @@ _SECTIONS: dict[str, set[str]] = {
     "tracker": {"name", "calibration", "options"},
     "filter": {"kind", "min_cutoff", "beta", "d_cutoff"},
     "sink": {"name", "options"},
+    "buttons": {"input", "dwell", "dwell_s", "dwell_radius_px", "dwell_button"},
     "screen": {"rect", "layout"},
     "daemon": {"socket", "queue", "retry_initial_s", "retry_max_s"},
 }
@@ -58,9 +68,21 @@ class FilterConfig:
     """Smoothing: ``kind`` "one-euro" (Casiez et al. 2012) or "none"; cutoffs in Hz."""
 
     kind: str = "one-euro"
-    min_cutoff: float = 1.0
-    beta: float = 0.007
-    d_cutoff: float = 1.0
+    min_cutoff: float = 0.1
+    beta: float = 20.0
+    d_cutoff: float = 2.0
+
+
+@dataclass(frozen=True)
+class ButtonsConfig:
+    """Pointer buttons from other inputs: ``input`` an omnidev.buttons spec ("" = none),
+    and the dwell click (time in s, radius in target-screen pixels)."""
+
+    input: str = ""
+    dwell: bool = False
+    dwell_s: float = 0.8
+    dwell_radius_px: float = 12.0
+    dwell_button: str = "left"
 
 
 @dataclass(frozen=True)
@@ -75,6 +97,7 @@ class DaemonConfig:
     tracker_options: dict[str, Any] = field(default_factory=dict)
     calibration: Path | None = None
     filter: FilterConfig = FilterConfig()
+    buttons: ButtonsConfig = ButtonsConfig()
     sink_options: dict[str, Any] = field(default_factory=dict)
     socket: Path = DEFAULT_SOCKET
     queue: int = 1
@@ -151,9 +174,28 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
         raise fail("filter.kind", f"must be 'one-euro' or 'none', got {kind!r}")
     filt = FilterConfig(
         kind,
-        positive("filter", "min_cutoff", 1.0),
-        positive("filter", "beta", 0.007, allow_zero=True),
-        positive("filter", "d_cutoff", 1.0),
+        positive("filter", "min_cutoff", FilterConfig.min_cutoff),
+        positive("filter", "beta", FilterConfig.beta, allow_zero=True),
+        positive("filter", "d_cutoff", FilterConfig.d_cutoff),
+    )
+
+    button_spec = get("buttons", "input", str, "").strip()
+    if button_spec:
+        from omnidev.buttons import parse_spec
+
+        try:
+            parse_spec(button_spec)
+        except ConfigError as exc:
+            raise fail("buttons.input", str(exc)) from None
+    dwell_button = get("buttons", "dwell_button", str, "left")
+    if dwell_button not in ("left", "right", "middle"):
+        raise fail("buttons.dwell_button", f"must be left, right or middle, got {dwell_button!r}")
+    buttons = ButtonsConfig(
+        button_spec,
+        get("buttons", "dwell", bool, False),
+        positive("buttons", "dwell_s", ButtonsConfig.dwell_s),
+        positive("buttons", "dwell_radius_px", ButtonsConfig.dwell_radius_px),
+        dwell_button,
     )
 
     rect_text = get("screen", "rect", str, "1920x1080+0+0")
@@ -185,6 +227,7 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
         tracker_options=tracker_options,
         calibration=calibration,
         filter=filt,
+        buttons=buttons,
         sink_options=sink_options,
         socket=socket,
         queue=queue,

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from omnidev.buttons import ButtonInput, ButtonInputError, DwellClicker, open_buttons
 from omnidev.daemon.config import DaemonConfig
 from omnidev.errors import OmnidevError
 from omnidev.filters import OneEuroFilter
@@ -79,8 +80,21 @@ class Pipeline:
             config.tracker, config.tracker_options, config.calibration
         )
         self.filter = self._make_filter(config)
-        self.sink: PointerSink = open_sink(config.sink, config.sink_options, config.screen)
+        self.buttons_in: ButtonInput | None = (
+            open_buttons(config.buttons.input) if config.buttons.input else None
+        )
+        try:
+            self.sink: PointerSink = open_sink(config.sink, config.sink_options, config.screen)
+        except BaseException:
+            if self.buttons_in is not None:
+                self.buttons_in.close()
+            raise
+        self.dwell = self._make_dwell(config)
+        self._held: set[str] = set()  # buttons held down on the button input
+        self._dwell_clicks = 0
         self._pending: tuple[Tracker, OneEuroFilter | None, PointerSink | None] | None = None
+        # a new button input from reload(): (the input or None,) when one is pending
+        self._pending_buttons: tuple[ButtonInput | None] | None = None
         self._capture = threading.Thread(target=self._capture_loop, name="capture", daemon=True)
         self._worker = threading.Thread(target=self._work_loop, name="worker", daemon=True)
 
@@ -114,6 +128,9 @@ class Pipeline:
         error is raised.
         """
         tracker = open_tracker(config.tracker, config.tracker_options, config.calibration)
+        buttons: tuple[ButtonInput | None] | None = None
+        if config.buttons.input != self.config.buttons.input:
+            buttons = (open_buttons(config.buttons.input) if config.buttons.input else None,)
         sink = None
         if (config.sink, config.sink_options, config.screen) != (
             self.config.sink,
@@ -126,6 +143,11 @@ class Pipeline:
             if self._pending is not None and self._pending[2] is not None:
                 self._pending[2].close()  # an earlier reload's sink, never used
             self._pending = (tracker, self._make_filter(config), sink)
+            if buttons is not None:
+                if self._pending_buttons is not None and self._pending_buttons[0] is not None:
+                    self._pending_buttons[0].close()  # an earlier reload's, never used
+                self._pending_buttons = buttons
+            self.dwell = self._make_dwell(config)
             self.config = config
         if source_changed:
             self._restart_source.set()
@@ -162,6 +184,9 @@ class Pipeline:
             "events": self.sink.events,
             "camera_retries": s.camera_retries,
             "uptime_s": round(time.monotonic() - self.started, 1),
+            "buttons_input": self.config.buttons.input or None,
+            "buttons_held": sorted(self._held),
+            "dwell_clicks": self._dwell_clicks,
             "error": self.fatal,
         }
 
@@ -237,6 +262,7 @@ class Pipeline:
                 if self._lost.is_set():
                     self._lost.clear()
                     self._on_lost()
+                self._poll_buttons()
                 try:
                     frame = self._queue.get(timeout=0.05)
                 except queue.Empty:
@@ -248,10 +274,48 @@ class Pipeline:
                 self.sink.close()
             except Exception:
                 log.exception("closing sink %s", self.sink.name)
+            if self.buttons_in is not None:
+                self.buttons_in.close()
+            if self._pending_buttons is not None and self._pending_buttons[0] is not None:
+                self._pending_buttons[0].close()
+
+    def _poll_buttons(self) -> None:
+        """Take the button input's presses and releases to the sink (worker thread)."""
+        if self.buttons_in is None:
+            return
+        try:
+            events = self.buttons_in.poll()
+        except ButtonInputError as exc:
+            log.error("%s; going on without it", exc)
+            self.buttons_in = None
+            events = [(b, False) for b in sorted(self._held)]
+        for button, down in events:
+            if down:
+                self._held.add(button)
+            else:
+                self._held.discard(button)
+            if self._paused.is_set() or self.sink.closed:
+                continue
+            try:
+                if down:
+                    self.sink.press(button)
+                else:
+                    self.sink.release(button)
+            except Exception as exc:
+                self._stats.sink_errors += 1
+                log.error("sink %s: %s %s failed: %s", self.sink.name, button, down, exc)
 
     def _on_lost(self) -> None:
         with self._lock:
             pending, self._pending = self._pending, None
+            new_buttons, self._pending_buttons = self._pending_buttons, None
+        if new_buttons is not None:
+            if self.buttons_in is not None:
+                self.buttons_in.close()
+            self.buttons_in = new_buttons[0]
+        self._held.clear()  # released below; a key still down counts again when pressed again
+        if self.dwell is not None:
+            self.dwell.reset()
         try:
             self.sink.release_all()
         except Exception:
@@ -289,12 +353,19 @@ class Pipeline:
             log.warning("tracker %s failed on frame %d: %s", self.config.tracker, frame.index, exc)
             return
         if sample is None:
+            if self.dwell is not None:
+                self.dwell.reset()  # no cursor: the rest, if any, starts again
             return
+        x, y = sample.x, sample.y
         if self.filter is not None:
             x, y = self.filter(sample.timestamp_ns / 1e9, [sample.x, sample.y])
-            sample = PointerSample(
-                float(x), float(y), sample.timestamp_ns, sample.confidence, sample.buttons
-            )
+        sample = PointerSample(
+            float(x),
+            float(y),
+            sample.timestamp_ns,
+            sample.confidence,
+            sample.buttons | frozenset(self._held),
+        )
         try:
             self.sink.emit(sample)
         except Exception as exc:
@@ -307,12 +378,23 @@ class Pipeline:
         if self._sink_failing:
             log.info("sink %s works again", self.sink.name)
             self._sink_failing = False
+        if self.dwell is not None:
+            rect = self.config.screen.screen
+            t = sample.timestamp_ns / 1e9
+            if self.dwell.update(t, sample.x * (rect.width - 1), sample.y * (rect.height - 1)):
+                self.sink.click(self.dwell.button)
+                self._dwell_clicks += 1
         done = time.monotonic_ns()
         self._stats.tracked += 1
         self._latency_ns.append(done - frame.timestamp_ns)
         self._times_ns.append(done)
         if self.on_sample is not None:
             self.on_sample(sample, done)
+
+    @staticmethod
+    def _make_dwell(config: DaemonConfig) -> DwellClicker | None:
+        b = config.buttons
+        return DwellClicker(b.dwell_radius_px, b.dwell_s, b.dwell_button) if b.dwell else None
 
     @staticmethod
     def _make_filter(config: DaemonConfig) -> OneEuroFilter | None:

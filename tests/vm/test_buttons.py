@@ -389,3 +389,62 @@ def test_hid_unplugged_releases_then_raises(gadget_keyboard: str) -> None:
     with pytest.raises(ButtonInputError, match=r"went away"):
         inp.poll()
     assert inp.close() == []
+
+
+# -- (c) through the pointer pipeline ------------------------------------------------------
+
+
+def test_pipeline_takes_key_presses_to_the_sink(keyboard: Any, tmp_path: Path) -> None:
+    """omnidevd's pipeline with ``[buttons] input = "evdev:..."``: holding SPACE holds the
+    left button in the sink while the blob tracker moves the pointer; releasing it
+    releases the button; a key held when the pipeline stops is released."""
+    from omnidev.daemon.config import parse_config
+    from omnidev.daemon.pipeline import Pipeline
+    from omnidev.sinks.record import read_events
+
+    rec = tmp_path / "events.jsonl"
+    blob = REPO / "fixtures" / "blob" / "blob.avi"
+    doc = {
+        "source": {"uri": f"video:{blob}?rate=60&loop=1"},
+        "tracker": {"name": "bright-blob"},
+        "filter": {"kind": "none"},
+        "sink": {"name": "record", "options": {"path": str(rec)}},
+        "buttons": {"input": f"evdev:{keyboard.device.path}?KEY_SPACE=left&KEY_B=right"},
+        "daemon": {"socket": str(tmp_path / "control.sock")},
+    }
+    p = Pipeline(parse_config(doc, tmp_path / "omnidev.toml"))
+    p.start()
+
+    def moves() -> int:
+        return int(p.status()["tracked"])
+
+    def wait(pred: Any) -> bool:
+        deadline = time.monotonic() + WAIT_S
+        while time.monotonic() < deadline:
+            if pred():
+                return True
+            time.sleep(0.01)
+        return False
+
+    try:
+        assert wait(lambda: moves() > 5)
+        key(keyboard, ecodes.KEY_SPACE, 1)
+        assert wait(lambda: "left" in p.sink.pressed)
+        n = moves()
+        assert wait(lambda: moves() > n + 5)  # the pointer keeps moving: a drag
+        assert "left" in p.sink.pressed
+        key(keyboard, ecodes.KEY_SPACE, 0)
+        assert wait(lambda: "left" not in p.sink.pressed)
+        key(keyboard, ecodes.KEY_B, 1)
+        assert wait(lambda: "right" in p.sink.pressed)
+        assert p.status()["buttons_held"] == ["right"]
+    finally:
+        p.stop()  # B still held: the pipeline releases it
+    events = list(read_events(rec))
+    buttons = [(e["button"], e["down"]) for e in events if e["kind"] == "button"]
+    assert buttons == [("left", True), ("left", False), ("right", True), ("right", False)]
+    first_down = next(i for i, e in enumerate(events) if e["kind"] == "button")
+    drag = [e for e in events[first_down:] if e["kind"] in ("move", "button")]
+    assert sum(e["kind"] == "move" for e in drag[: drag.index(next(
+        e for e in drag if e["kind"] == "button" and not e["down"]))]) >= 5  # fmt: skip
+    assert events[-1]["kind"] == "close"
