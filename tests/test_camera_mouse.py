@@ -4,6 +4,7 @@ cursor (the screen point under the image center) on a 1920x1080 screen."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -97,3 +98,34 @@ def test_needs_its_layout(tmp_path):
     bad.write_text(json.dumps({k: v for k, v in LAYOUT.items() if k != "offsets_mm"}))
     with pytest.raises(TrackerError, match="offsets_mm"):
         open_tracker("camera-mouse", {}, bad)
+
+
+def test_redetects_when_confidence_falls(layout_file):
+    """A landmark whose prediction went wrong (pushed 60 px off, marked missing) is not
+    found near there; while it is predicted the detection stage runs every
+    ``redetect_every`` frames and re-locks on all four (sec. 6.2.5's re-detection)."""
+    import cv2
+
+    fx = Path(__file__).resolve().parents[1] / "fixtures" / "mouse" / "drift-640x480"
+    truth = json.loads((fx / "truth.json").read_text())["per_frame"]
+    cap = cv2.VideoCapture(str(fx / "mouse.avi"))
+    frames = [cap.read()[1] for _ in range(12)]
+    tracker = open_tracker("camera-mouse", {"redetect_every": 5}, fx / "landmarks.json")
+    assert tracker.track(Frame(frames[0], 0, 0)) is not None
+    tracker.tracker.centers[0] += (60.0, 40.0)  # a prediction gone wrong
+    tracker.tracker.found[0] = False
+    out, tl_found = [], []
+    for i, f in enumerate(frames[1:], 1):
+        out.append(tracker.track(Frame(f, i, i)))
+        tl_found.append(tracker.tracker.found[0])
+    print(f"\ntop-left found per frame after the bad prediction: {tl_found}")
+    assert not any(tl_found[:4])  # predicted, not found near the wrong place
+    assert tracker.relocks == 1, "no re-detection while a landmark was predicted"
+    assert all(tl_found[5:])  # re-locked on all four at the 5th weak frame
+    last = out[-1]
+    assert last is not None and err_px(last, _Truth(truth[11]["screen_xy"])) < 1.0
+
+
+class _Truth:
+    def __init__(self, xy):
+        self.screen_xy = xy

@@ -125,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
     options = sink_options(args.sink_option)
     with open_source(args.source) as probe:  # a clear error now, not a retry loop
         ends = probe.frame_count is not None  # a file that is not looped
+        # a file read as fast as it decodes: keep every frame (a camera: drop old ones)
+        queue = 1 if getattr(probe, "live", True) else 1024
     doc = {
         "source": {"uri": args.source},
         "tracker": {
@@ -135,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
         "filter": {"kind": args.filter},
         "sink": {"name": args.sink, "options": options},
         "screen": {"rect": args.screen},
+        "daemon": {"queue": queue},
         "buttons": {
             "input": args.buttons,
             "dwell": args.dwell,
@@ -144,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
     }
     config = parse_config(doc, Path("omnidev mouse"))
     pipeline = Pipeline(config)
+    _warn_aspect(getattr(pipeline.tracker, "layout", None), config.screen.screen)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -174,6 +178,22 @@ def run(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     return 0
+
+
+def _warn_aspect(layout: Any, rect: Any) -> None:
+    """Warn when the landmark layout's screen (mm) and the target screen (px) differ in
+    shape: the cursor would then be stretched."""
+    if layout is None:
+        return
+    mm = layout.screen_width_mm / layout.screen_height_mm
+    px = rect.width / rect.height
+    if abs(mm / px - 1.0) > 0.02:
+        print(
+            f"omnidev mouse: warning: the layout's screen is {layout.screen_width_mm:g}x"
+            f"{layout.screen_height_mm:g} mm (aspect {mm:.3f}) but --screen is "
+            f"{rect.width}x{rect.height} px (aspect {px:.3f}): the cursor will be stretched",
+            file=sys.stderr,
+        )
 
 
 def _pair(text: str, what: str) -> tuple[float, float]:
