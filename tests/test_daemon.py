@@ -246,3 +246,38 @@ def test_frame_size_change_stops_with_buttons_released(tmp_path):
     buttons = [(e["button"], e["down"]) for e in events if e["kind"] == "button"]
     assert buttons == [("left", True), ("left", False)]
     assert events[-1]["kind"] == "close"
+
+
+@pytest.mark.parametrize("release", [True, False])
+def test_target_lost_releases_buttons(tmp_path, release):
+    """A frame with no target while a button is down releases it ([buttons]
+    release_when_lost, default true); the next pressed frame presses again."""
+    import cv2
+
+    truth = load_blob_truth(BLOB / "truth.json")
+    first_press = next(i for i, t in enumerate(truth) if t.pressed)
+    assert all(t.pressed for t in truth[first_press : first_press + 5])
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    cap = cv2.VideoCapture(str(BLOB / "blob.avi"))
+    imgs = [cap.read()[1] for _ in range(first_press + 5)]
+    order = [*range(first_press + 2), None, first_press + 2, first_press + 3]
+    for k, i in enumerate(order):  # None: a frame with no spot at all
+        img = np.zeros_like(imgs[0]) if i is None else imgs[i]
+        cv2.imwrite(str(frames / f"f{k:04d}.png"), img)
+    rec = tmp_path / "events.jsonl"
+    extra = "queue = 64\n[buttons]\nrelease_when_lost = " + ("true" if release else "false")
+    cfg = load_config(
+        blob_config(tmp_path, f"images:{frames}", "record", f'path = "{rec}"', extra=extra)
+    )
+    p = Pipeline(cfg)
+    p.start()
+    try:
+        assert wait_for(lambda: p.status()["state"] == "waiting for camera", 20)
+    finally:
+        p.stop()
+    buttons = [(e["button"], e["down"]) for e in read_events(rec) if e["kind"] == "button"]
+    if release:
+        assert buttons == [("left", True), ("left", False), ("left", True), ("left", False)]
+    else:
+        assert buttons == [("left", True), ("left", False)]  # held through, released at stop

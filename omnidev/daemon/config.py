@@ -27,6 +27,7 @@ dwell = false                 # click when the cursor rests ...
 dwell_s = 0.8                 # ... this long (s)
 dwell_radius_px = 12.0        # ... within this radius (target-screen px)
 dwell_button = "left"
+release_when_lost = true      # release every button on a frame with no target
 
 [screen]
 rect = "1920x1080+0+0"        # the target screen in the desktop layout (WxH+X+Y)
@@ -57,7 +58,14 @@ _SECTIONS: dict[str, set[str]] = {
     "tracker": {"name", "calibration", "options"},
     "filter": {"kind", "min_cutoff", "beta", "d_cutoff"},
     "sink": {"name", "options"},
-    "buttons": {"input", "dwell", "dwell_s", "dwell_radius_px", "dwell_button"},
+    "buttons": {
+        "input",
+        "dwell",
+        "dwell_s",
+        "dwell_radius_px",
+        "dwell_button",
+        "release_when_lost",
+    },
     "screen": {"rect", "layout"},
     "daemon": {"socket", "queue", "retry_initial_s", "retry_max_s"},
 }
@@ -76,13 +84,15 @@ class FilterConfig:
 @dataclass(frozen=True)
 class ButtonsConfig:
     """Pointer buttons from other inputs: ``input`` an omnidev.buttons spec ("" = none),
-    and the dwell click (time in s, radius in target-screen pixels)."""
+    the dwell click (time in s, radius in target-screen pixels), and whether a frame
+    with no target (the tracker gives nothing) releases every button."""
 
     input: str = ""
     dwell: bool = False
     dwell_s: float = 0.8
     dwell_radius_px: float = 12.0
     dwell_button: str = "left"
+    release_when_lost: bool = True
 
 
 @dataclass(frozen=True)
@@ -196,6 +206,7 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
         positive("buttons", "dwell_s", ButtonsConfig.dwell_s),
         positive("buttons", "dwell_radius_px", ButtonsConfig.dwell_radius_px),
         dwell_button,
+        get("buttons", "release_when_lost", bool, True),
     )
 
     rect_text = get("screen", "rect", str, "1920x1080+0+0")

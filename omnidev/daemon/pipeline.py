@@ -355,6 +355,14 @@ class Pipeline:
         if sample is None:
             if self.dwell is not None:
                 self.dwell.reset()  # no cursor: the rest, if any, starts again
+            if self.config.buttons.release_when_lost and self.sink.pressed:
+                # target lost (laser off, landmarks gone): no button stays down; a key
+                # still held presses again with the next position
+                try:
+                    self.sink.release_all()
+                except Exception as exc:
+                    self._stats.sink_errors += 1
+                    log.error("sink %s: releasing buttons failed: %s", self.sink.name, exc)
             return
         x, y = sample.x, sample.y
         if self.filter is not None:
