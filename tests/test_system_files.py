@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from omnidev.daemon.config import DEFAULT_CONFIG, parse_config
+from omnidev.daemon.config import DEFAULT_CONFIG, ButtonsConfig, parse_config
 from omnidev.daemon.control import DEFAULT_SOCKET, request
 
 REPO = Path(__file__).resolve().parents[1]
@@ -452,7 +452,16 @@ def test_example_config_is_valid_and_complete():
     assert config.source == "v4l2:/dev/video0?width=640&height=480&fps=30"
     assert config.tracker == "bright-blob" and config.sink == "uinput"
     assert config.socket == DEFAULT_SOCKET
-    assert set(doc) == {"source", "tracker", "filter", "sink", "screen", "daemon"}
+    assert set(doc) == {"source", "tracker", "filter", "buttons", "sink", "screen", "daemon"}
+    assert doc["buttons"] == {
+        "input": "",
+        "dwell": False,
+        "dwell_s": 0.8,
+        "dwell_radius_px": 12.0,
+        "dwell_button": "left",
+        "release_when_lost": True,
+    }
+    assert config.buttons == ButtonsConfig()  # every value shown is the default
     assert doc["filter"] == {"kind": "one-euro", "min_cutoff": 0.1, "beta": 20.0, "d_cutoff": 2.0}
     assert doc["daemon"] == {
         "socket": "/run/omnidev/control.sock",
