@@ -8,15 +8,11 @@ SIGTERM; buttons are released on the way out.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
-import time
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
-from omnidev.cli.options import sink_options
+from omnidev.cli.foreground import add_pointer_arguments
 from omnidev.errors import OmnidevError
 
 
@@ -28,10 +24,6 @@ def register(sub: Any) -> None:
     )
     p.add_argument("source", help="source URI or path (v4l2:/dev/video0, a video file, ...)")
     p.add_argument("--layout", required=True, type=Path, help="landmark layout (JSON or TOML)")
-    p.add_argument("--sink", default="record", help="sink plugin (uinput, xtest, hidg, record)")
-    p.add_argument(
-        "--sink-option", action="append", default=[], metavar="KEY=VALUE", help="sink option"
-    )
     p.add_argument(
         "--method",
         choices=("homography", "affine"),
@@ -50,23 +42,7 @@ def register(sub: Any) -> None:
         default=60.0,
         help="the webcam's horizontal field of view, degrees (for --predict rotation)",
     )
-    p.add_argument("--screen", default="1920x1080+0+0", help="target screen WxH+X+Y")
-    p.add_argument("--filter", choices=("one-euro", "none"), default="one-euro")
-    p.add_argument(
-        "--buttons",
-        default="",
-        metavar="SPEC",
-        help="pointer buttons from a key or HID remote, e.g. "
-        "'evdev:/dev/input/event3?KEY_SPACE=left' (see docs/buttons.md)",
-    )
-    p.add_argument("--dwell", action="store_true", help="click when the cursor rests")
-    p.add_argument("--dwell-s", type=float, default=0.8, help="dwell time, s (default 0.8)")
-    p.add_argument(
-        "--dwell-radius-px",
-        type=float,
-        default=12.0,
-        help="the cursor rests while it stays within this radius, screen px (default 12)",
-    )
+    add_pointer_arguments(p)
     p.set_defaults(func=run)
     ev = sub.add_parser(
         "mouse-eval",
@@ -116,68 +92,23 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omnidev.daemon.config import parse_config
-    from omnidev.daemon.pipeline import Pipeline
-    from omnidev.sources import open_source
+    from omnidev.cli.foreground import run_foreground
 
     if not args.layout.is_file():
         raise OmnidevError(f"{args.layout}: landmark layout file not found")
-    options = sink_options(args.sink_option)
-    with open_source(args.source) as probe:  # a clear error now, not a retry loop
-        ends = probe.frame_count is not None  # a file that is not looped
-        # a file read as fast as it decodes: keep every frame (a camera: drop old ones)
-        queue = 1 if getattr(probe, "live", True) else 1024
-    doc = {
-        "source": {"uri": args.source},
-        "tracker": {
-            "name": "camera-mouse",
-            "calibration": str(args.layout.resolve()),
-            "options": {"method": args.method, "predict": args.predict, "fov_deg": args.fov_deg},
-        },
-        "filter": {"kind": args.filter},
-        "sink": {"name": args.sink, "options": options},
-        "screen": {"rect": args.screen},
-        "daemon": {"queue": queue},
-        "buttons": {
-            "input": args.buttons,
-            "dwell": args.dwell,
-            "dwell_s": args.dwell_s,
-            "dwell_radius_px": args.dwell_radius_px,
-        },
+    tracker = {
+        "name": "camera-mouse",
+        "calibration": str(args.layout.resolve()),
+        "options": {"method": args.method, "predict": args.predict, "fov_deg": args.fov_deg},
     }
-    config = parse_config(doc, Path("omnidev mouse"))
-    pipeline = Pipeline(config)
-    _warn_aspect(getattr(pipeline.tracker, "layout", None), config.screen.screen)
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    pipeline.start()
-    try:
-        while not stop.wait(0.1):
-            if not pipeline.alive:
-                pipeline.stop()
-                raise OmnidevError(
-                    pipeline.fatal or "the pipeline stopped unexpectedly (see the log above)"
-                )
-            st = pipeline.status()
-            if ends and st["state"] == "waiting for camera":
-                break  # the file ended
-        time.sleep(0.05)
-    finally:
-        pipeline.stop()
-        for s, h in old.items():
-            signal.signal(s, h)
-    st = pipeline.status()
-    clicks = f", {st['dwell_clicks']} dwell clicks" if args.dwell else ""
-    print(
-        f"{st['frames']} frames, {st['tracked']} cursor positions{clicks}, latency p50 "
-        f"{st['latency_p50_ms']} ms; buttons released",
-        file=sys.stderr,
+    return run_foreground(
+        args,
+        "mouse",
+        tracker,
+        check=lambda pipeline, config: _warn_aspect(
+            getattr(pipeline.tracker, "layout", None), config.screen.screen
+        ),
     )
-    return 0
 
 
 def _warn_aspect(layout: Any, rect: Any) -> None:

@@ -1,0 +1,113 @@
+"""Running a tracker pipeline in the foreground, shared by ``omnidev mouse`` and
+``omnidev laser``: the daemon's pipeline on any source into any sink until a file
+source ends or Ctrl-C / SIGTERM; every button is released on the way out."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from omnidev.cli.options import sink_options
+from omnidev.errors import OmnidevError
+
+
+def add_pointer_arguments(p: argparse.ArgumentParser) -> None:
+    """The options every foreground pointer command has: sink, screen, filter, buttons."""
+    p.add_argument("--sink", default="record", help="sink plugin (uinput, xtest, hidg, record)")
+    p.add_argument(
+        "--sink-option", action="append", default=[], metavar="KEY=VALUE", help="sink option"
+    )
+    p.add_argument("--screen", default="1920x1080+0+0", help="target screen WxH+X+Y")
+    p.add_argument("--filter", choices=("one-euro", "none"), default="one-euro")
+    p.add_argument(
+        "--buttons",
+        default="",
+        metavar="SPEC",
+        help="pointer buttons from a key or HID remote, e.g. "
+        "'evdev:/dev/input/event3?KEY_SPACE=left' (see docs/buttons.md)",
+    )
+    p.add_argument("--dwell", action="store_true", help="click when the cursor rests")
+    p.add_argument("--dwell-s", type=float, default=0.8, help="dwell time, s (default 0.8)")
+    p.add_argument(
+        "--dwell-radius-px",
+        type=float,
+        default=12.0,
+        help="the cursor rests while it stays within this radius, screen px (default 12)",
+    )
+
+
+def run_foreground(
+    args: argparse.Namespace,
+    name: str,
+    tracker: dict[str, Any],
+    *,
+    check: Callable[[Any, Any], None] | None = None,
+) -> int:
+    """Run ``tracker`` (the daemon config's [tracker] table) on ``args.source``.
+
+    ``check(pipeline, config)`` may warn about the configuration before the start.
+    """
+    from omnidev.daemon.config import parse_config
+    from omnidev.daemon.pipeline import Pipeline
+    from omnidev.sources import open_source
+
+    options = sink_options(args.sink_option)
+    with open_source(args.source) as probe:  # a clear error now, not a retry loop
+        ends = probe.frame_count is not None  # a file that is not looped
+        # a file read as fast as it decodes: keep every frame (a camera: drop old ones)
+        queue = 1 if getattr(probe, "live", True) else 1024
+    doc = {
+        "source": {"uri": args.source},
+        "tracker": tracker,
+        "filter": {"kind": args.filter},
+        "sink": {"name": args.sink, "options": options},
+        "screen": {"rect": args.screen},
+        "daemon": {"queue": queue},
+        "buttons": {
+            "input": args.buttons,
+            "dwell": args.dwell,
+            "dwell_s": args.dwell_s,
+            "dwell_radius_px": args.dwell_radius_px,
+        },
+    }
+    config = parse_config(doc, Path(f"omnidev {name}"))
+    pipeline = Pipeline(config)
+    if check is not None:
+        check(pipeline, config)
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    pipeline.start()
+    try:
+        while not stop.wait(0.1):
+            if not pipeline.alive:
+                pipeline.stop()
+                raise OmnidevError(
+                    pipeline.fatal or "the pipeline stopped unexpectedly (see the log above)"
+                )
+            st = pipeline.status()
+            if ends and st["state"] == "waiting for camera":
+                break  # the file ended
+        time.sleep(0.05)
+    finally:
+        pipeline.stop()
+        for s, h in old.items():
+            signal.signal(s, h)
+    st = pipeline.status()
+    clicks = f", {st['dwell_clicks']} dwell clicks" if args.dwell else ""
+    print(
+        f"{st['frames']} frames, {st['tracked']} cursor positions{clicks}, latency p50 "
+        f"{st['latency_p50_ms']} ms; buttons released",
+        file=sys.stderr,
+    )
+    return 0
