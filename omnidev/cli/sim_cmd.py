@@ -51,6 +51,9 @@ def register(sub: Any) -> None:
     m.add_argument("--seed", type=int, default=0)
     m.add_argument("--force", action="store_true", help="replace an existing folder")
     m.set_defaults(func=run_mouse)
+    from omnidev.cli.sim_screen_cmd import register_screen
+
+    register_screen(ssub)
 
 
 def run(args: argparse.Namespace) -> int:
