@@ -1,0 +1,282 @@
+"""Dot centres of the dot-matrix image (sec. 5.2.2b).
+
+(b.1) connected components of the binary image d' (eq. 5.2) filtered by area,
+width/height ratio and fill; (b.2) the five-dot cross C0..C4 near the screen centre
+and the rough cross-matrix pattern (CMP) with the spacings W_g, H_g of eq. 5.3;
+(b.3) fine positions by deformable template matching (DTM): a circle of centre
+(x, y) and radius r with eight scan windows around it, the position and radius of
+maximum edge energy in the search range. Beside the dissertation's integer DTM
+position, ``subpixel=True`` (default) refines each centre by the centroid of the
+dot's normalised brightness ``(d - b) / (w - b)`` in a disc around it.
+
+Positions are image pixels (u right, v down, top-left pixel centre at (0, 0)).
+Dot indices are row-major from the top-left of the screen, as in
+:class:`omnidev.screencal.patterns.DotGrid`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.errors import CalibrationError
+from omnidev.screencal.features import MIN_CONTRAST, BorderPolygon, binarize, to_gray
+
+FloatArray = NDArray[np.float64]
+
+# The eight scan-window directions of the circular template (Fig. 5.10b).
+_DIRS = [(math.cos(a), math.sin(a)) for a in np.arange(8) * math.pi / 4]
+
+
+@dataclass(frozen=True)
+class DotDetection:
+    """Dot centres found in a dot-matrix image.
+
+    centers: (n*n, 2) image px, row-major like the pattern's DotGrid; NaN where a
+    dot was not found. found: (n*n,) bool. radius: (n*n,) DTM radius in image px
+    (NaN if not found). pitch: (W_g, H_g) of eq. 5.3 in image px. cross: (5, 2) the
+    five-dot cross C0..C4 (C1 left, C2 right, C3 up, C4 down).
+    """
+
+    n: int
+    centers: FloatArray
+    found: NDArray[np.bool_]
+    radius: FloatArray
+    pitch: tuple[float, float]
+    cross: FloatArray
+
+    @property
+    def count(self) -> int:
+        """Number of dots found."""
+        return int(self.found.sum())
+
+
+@dataclass(frozen=True)
+class _Blobs:
+    centroid: FloatArray  # (m, 2)
+    area: FloatArray  # (m,)
+
+
+def _components(binary: NDArray[np.uint8], border: BorderPolygon) -> _Blobs:
+    """(b.1) Connected components that look like dots: inside the border, fill >= 0.45,
+    width/height within 1:2.5, area within 1/4..4 x the median area."""
+    count, _, stats, cents = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    if count <= 1:
+        return _Blobs(np.zeros((0, 2)), np.zeros(0))
+    st = stats[1:].astype(np.float64)
+    c = np.asarray(cents[1:], np.float64)
+    area = st[:, cv2.CC_STAT_AREA]
+    bw, bh = st[:, cv2.CC_STAT_WIDTH], st[:, cv2.CC_STAT_HEIGHT]
+    ok = (area >= 5) & (bw / bh <= 2.5) & (bh / bw <= 2.5) & (area / (bw * bh) >= 0.45)
+    c, area = c[ok], area[ok]
+    if len(c):
+        inside = border.contains(c)
+        c, area = c[inside], area[inside]
+    if len(c):
+        med = float(np.median(area))
+        ok = (area >= med / 4) & (area <= med * 4)
+        c, area = c[ok], area[ok]
+    return _Blobs(c, area)
+
+
+def _nearest_in_cone(c: FloatArray, pts: FloatArray, direction: tuple[float, float]) -> int:
+    """Index of the point nearest to c within 45 degrees of ``direction``; -1 if none."""
+    d = pts - c
+    dist = np.hypot(d[:, 0], d[:, 1])
+    along = d @ np.asarray(direction)
+    ok = (dist > 0) & (along > dist * math.cos(math.pi / 4))
+    if not ok.any():
+        return -1
+    idx = np.flatnonzero(ok)
+    return int(idx[np.argmin(dist[idx])])
+
+
+def _edge_maps(gray: NDArray[np.uint8]) -> list[NDArray[np.float32]]:
+    """Edge value |G_in - G_out| of the template's scan window k at every pixel: six
+    pixels along the circle on the inner side against six on the outer side."""
+    g = gray.astype(np.float32)
+    maps = []
+    for dx, dy in _DIRS:
+        ux, uy = round(dx), round(dy)
+        tx, ty = -uy, ux  # tangent
+        k = np.zeros((11, 11), np.float32)
+        for t in range(-3, 3):
+            k[5 + t * ty, 5 + t * tx] -= 1 / 6
+            k[5 + t * ty + uy, 5 + t * tx + ux] += 1 / 6
+        maps.append(np.abs(cv2.filter2D(g, cv2.CV_32F, k, borderType=cv2.BORDER_REPLICATE)))
+    return maps
+
+
+def _dtm(
+    maps: list[NDArray[np.float32]],
+    start: tuple[int, int],
+    half: tuple[int, int],
+    radii: FloatArray,
+) -> tuple[int, int, float, float]:
+    """(b.3) Deformable template matching: the centre (x, y) in the search range
+    start +- half and the radius in ``radii`` with the largest edge energy (sum of
+    the eight scan windows' edge values). Returns x, y, r, energy."""
+    h, w = maps[0].shape
+    x0, y0 = start
+    hx, hy = half
+    best = (x0, y0, float(radii[0]), -1.0)
+    xs = np.arange(x0 - hx, x0 + hx + 1)
+    ys = np.arange(y0 - hy, y0 + hy + 1)
+    for r in radii:
+        energy = np.zeros((len(ys), len(xs)), np.float32)
+        for (dx, dy), emap in zip(_DIRS, maps, strict=True):
+            ox, oy = round(float(r) * dx), round(float(r) * dy)
+            yy = np.clip(ys + oy, 0, h - 1)
+            xx = np.clip(xs + ox, 0, w - 1)
+            energy += emap[np.ix_(yy, xx)]
+        k = int(np.argmax(energy))
+        e = float(energy.flat[k])
+        if e > best[3]:
+            iy, ix = divmod(k, len(xs))
+            best = (int(xs[ix]), int(ys[iy]), float(r), e)
+    return best
+
+
+def _centroid(
+    norm: NDArray[np.float32], x: float, y: float, radius: float
+) -> tuple[float, float] | None:
+    """Centroid of the normalised brightness in the disc of ``radius`` around (x, y)."""
+    h, w = norm.shape
+    r = math.ceil(radius)
+    xi, yi = round(x), round(y)
+    if xi - r < 0 or yi - r < 0 or xi + r >= w or yi + r >= h:
+        return None
+    patch = norm[yi - r : yi + r + 1, xi - r : xi + r + 1].astype(np.float64)
+    gy, gx = np.mgrid[-r : r + 1, -r : r + 1]
+    wgt = patch * ((gx + xi - x) ** 2 + (gy + yi - y) ** 2 <= radius**2)
+    s = float(wgt.sum())
+    if s <= 0:
+        return None
+    return xi + float((wgt * gx).sum()) / s, yi + float((wgt * gy).sum()) / s
+
+
+def find_dots(
+    dots: NDArray[np.uint8],
+    white: NDArray[np.uint8],
+    black: NDArray[np.uint8],
+    tdm: NDArray[np.uint8],
+    border: BorderPolygon,
+    n: int,
+    screen_dots: FloatArray,
+    screen_size: tuple[int, int],
+    *,
+    subpixel: bool = True,
+) -> DotDetection:
+    """Find the n x n dot centres (sec. 5.2.2b) in image pixels.
+
+    ``screen_dots`` (n*n, 2) are the dots' screen pixels (the pattern's DotGrid) and
+    ``screen_size`` (W, H); they give the grid index of the centre dot C0 (through
+    the homography of the border polygon's corners), so the grid is indexed right
+    even when whole rows or columns are occluded. Walking out from C0 ring by ring,
+    each rough CMP cross (eq. 5.3 spacing, moved by its found neighbours' offsets)
+    takes the component nearest to it within the search range; the DTM then fixes
+    the centre. Missing dots are NaN in ``centers``.
+    """
+    gray = to_gray(dots)
+    binary = binarize(gray, tdm)
+    blobs = _components(binary, border)
+    if len(blobs.area) < 5:
+        raise CalibrationError(
+            f"dots not found: {len(blobs.area)} dot-like blobs in the dot image "
+            "(is it the dot-matrix image, and is the screen showing it?)"
+        )
+    centre = border.vertices[[1, 3, 5, 7]].mean(axis=0)
+    pts = blobs.centroid
+    i0 = int(np.argmin(np.hypot(*(pts - centre).T)))
+    c0 = pts[i0]
+    nb = [_nearest_in_cone(c0, pts, d) for d in ((-1, 0), (1, 0), (0, -1), (0, 1))]
+    if min(nb) < 0:
+        raise CalibrationError(
+            "dots not found: no five-dot cross near the screen centre (dots occluded?)"
+        )
+    c1, c2, c3, c4 = (pts[k] for k in nb)
+    wg = (float(np.hypot(*(c1 - c0))) + float(np.hypot(*(c2 - c0)))) / 2  # eq. 5.3
+    hg = (float(np.hypot(*(c3 - c0))) + float(np.hypot(*(c4 - c0)))) / 2
+    # grid index of C0: its screen position through the corner homography
+    sw, sh = screen_size
+    corners_img = border.vertices[[0, 2, 4, 6]].astype(np.float32)
+    corners_scr = np.array(
+        [[-0.5, -0.5], [sw - 0.5, -0.5], [sw - 0.5, sh - 0.5], [-0.5, sh - 0.5]], np.float32
+    )
+    hmat = cv2.getPerspectiveTransform(corners_img, corners_scr)
+    s0 = cv2.perspectiveTransform(c0.reshape(1, 1, 2).astype(np.float64), hmat)[0, 0]
+    k0 = int(np.argmin(np.hypot(*(screen_dots - s0).T)))
+    r0, q0 = divmod(k0, n)
+
+    w_img = to_gray(white).astype(np.float32)
+    b_img = to_gray(black).astype(np.float32)
+    diff = w_img - b_img
+    norm = np.where(diff > MIN_CONTRAST, (gray - b_img) / np.maximum(diff, 1), 0)
+    norm = np.clip(norm, 0, 1).astype(np.float32)
+    maps = _edge_maps(gray)
+
+    centers = np.full((n, n, 2), np.nan)
+    radius = np.full((n, n), np.nan)
+    used = np.zeros(len(pts), bool)
+    order = sorted(
+        ((i, j) for i in range(n) for j in range(n)),
+        key=lambda ij: (max(abs(ij[0] - r0), abs(ij[1] - q0)), abs(ij[0] - r0) + abs(ij[1] - q0)),
+    )
+    for i, j in order:
+        rough = c0 + np.array([(j - q0) * wg, (i - r0) * hg])  # rough CMP cross
+        pred = rough
+        # move the cross by its found neighbours towards C0 (linear extrapolation)
+        si, sj = int(np.sign(r0 - i)), int(np.sign(q0 - j))
+        guesses = []
+        for di, dj in ((si, 0), (0, sj), (si, sj)):
+            if di == 0 and dj == 0:
+                continue
+            a = centers[i + di, j + dj]
+            b = (
+                centers[i + 2 * di, j + 2 * dj]
+                if 0 <= i + 2 * di < n and 0 <= j + 2 * dj < n
+                else np.full(2, np.nan)
+            )
+            if np.isfinite(a).all():
+                step = (a - b) if np.isfinite(b).all() else np.array([-dj * wg, -di * hg])
+                guesses.append(a + step)
+        if guesses:
+            pred = np.mean(guesses, axis=0)
+        d = pts - pred
+        inside = (np.abs(d[:, 0]) < wg / 2) & (np.abs(d[:, 1]) < hg / 2) & ~used
+        if not inside.any():
+            continue
+        cand = np.flatnonzero(inside)
+        k = int(cand[np.argmin(np.hypot(*d[cand].T))])
+        used[k] = True
+        r_cc = math.sqrt(blobs.area[k] / math.pi)
+        radii = np.arange(max(1.5, 0.7 * r_cc), 1.3 * r_cc + 1.0, 0.5)
+        half = (max(2, int(wg / 4)), max(2, int(hg / 4)))
+        start = (round(float(pts[k, 0])), round(float(pts[k, 1])))
+        half = (min(half[0], int(r_cc) + 2), min(half[1], int(r_cc) + 2))
+        x, y, r, _ = _dtm(maps, start, half, radii)
+        pos: tuple[float, float] = (float(x), float(y))
+        if subpixel:
+            for _ in range(10):
+                c = _centroid(norm, pos[0], pos[1], 1.25 * r + 2.0)
+                if c is None:
+                    break
+                moved = math.hypot(c[0] - pos[0], c[1] - pos[1])
+                pos = c
+                if moved < 1e-3:
+                    break
+        centers[i, j] = pos
+        radius[i, j] = r
+    found = np.isfinite(centers[..., 0]).ravel()
+    return DotDetection(
+        n=n,
+        centers=centers.reshape(-1, 2),
+        found=found,
+        radius=radius.ravel(),
+        pitch=(wg, hg),
+        cross=np.stack([c0, c1, c2, c3, c4]),
+    )

@@ -1,0 +1,318 @@
+"""Image -> screen transforms fitted to the landmark grid (sec. 5.2.3 and better ones).
+
+Every transform maps (N, 2) image pixels ``(u, v)`` to (N, 2) screen pixels
+``(x, y)`` (both: top-left pixel centre at (0, 0)) and returns NaN where it is not
+defined. Methods:
+
+- ``idw``: the dissertation's inverse-distance-weighted interpolation in each cell of
+  the (N+2) x (N+2) grid (eqs. 5.4-5.5), and in the border area in cells extended to
+  the image border (Fig. 5.12).
+- ``bilinear``: the same cells, inverse-bilinear interpolation (exact for a cell that
+  is the perspective image of a rectangle seen straight on, and continuous across
+  cell sides, which IDW is not).
+- ``homography``: one global homography (cv2.findHomography, least squares) fitted to
+  the dots.
+- ``radial``: a lens model fitted to all dots by least squares - undistortion
+  ``p_u = c + (p - c)(1 + k1 r^2 + k2 r^4 + k3 r^6)`` (r normalised by the image
+  half-diagonal, centre c free) followed by a homography - plus a correction
+  interpolated bilinearly from its residuals at the dots (screen lattice).
+- ``tsai`` lives in :mod:`omnidev.screencal.tsai`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.screencal.grid import LandmarkGrid
+from omnidev.screencal.lsq import levenberg_marquardt
+
+FloatArray = NDArray[np.float64]
+Params = dict[str, FloatArray]
+
+
+class ImageToScreen(Protocol):
+    """A fitted image -> screen map."""
+
+    name: str
+
+    def __call__(self, uv: FloatArray) -> FloatArray: ...
+
+    def params(self) -> Params: ...
+
+
+def _as_points(uv: FloatArray) -> FloatArray:
+    pts = np.asarray(uv, np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"points must be (N, 2), got shape {pts.shape}")
+    return pts
+
+
+# ---------------------------------------------------------------- cells (idw, bilinear)
+
+
+def _extend(
+    a: FloatArray, b: FloatArray, sa: FloatArray, sb: FloatArray, axis: int, c: float
+) -> tuple[FloatArray, FloatArray]:
+    """Continue the line a -> b (image) to the image border line (coordinate ``axis``
+    = c); screen coordinates extrapolated linearly along it (Fig. 5.12)."""
+    d = b[..., axis] - a[..., axis]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(np.abs(d) > 1e-9, (c - b[..., axis]) / d, 0.0)
+    t = np.maximum(t, 0.0)[..., None]
+    return b + t * (b - a), sb + t * (sb - sa)
+
+
+def grid_cells(grid: LandmarkGrid, image_size: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
+    """The basic regions as quads: image (Q, 4, 2) and screen (Q, 4, 2), corners in the
+    order top-left, top-right, bottom-right, bottom-left. First the (N+1)^2 cells of
+    the display area, then the cells of the border area: each outer cell side
+    extended to the image border (u = -0.5, W - 0.5; v = -0.5, H - 0.5)."""
+    gi, gs = grid.image, grid.screen
+    w, h = image_size
+    img = [np.stack([gi[:-1, :-1], gi[:-1, 1:], gi[1:, 1:], gi[1:, :-1]], axis=2).reshape(-1, 4, 2)]
+    scr = [np.stack([gs[:-1, :-1], gs[:-1, 1:], gs[1:, 1:], gs[1:, :-1]], axis=2).reshape(-1, 4, 2)]
+    # top: lines from row 1 through row 0 to v = -0.5
+    ti, ts = _extend(gi[1], gi[0], gs[1], gs[0], 1, -0.5)
+    img.append(np.stack([ti[:-1], ti[1:], gi[0, 1:], gi[0, :-1]], axis=1))
+    scr.append(np.stack([ts[:-1], ts[1:], gs[0, 1:], gs[0, :-1]], axis=1))
+    bi, bs = _extend(gi[-2], gi[-1], gs[-2], gs[-1], 1, h - 0.5)
+    img.append(np.stack([gi[-1, :-1], gi[-1, 1:], bi[1:], bi[:-1]], axis=1))
+    scr.append(np.stack([gs[-1, :-1], gs[-1, 1:], bs[1:], bs[:-1]], axis=1))
+    li, ls = _extend(gi[:, 1], gi[:, 0], gs[:, 1], gs[:, 0], 0, -0.5)
+    img.append(np.stack([li[:-1], gi[:-1, 0], gi[1:, 0], li[1:]], axis=1))
+    scr.append(np.stack([ls[:-1], gs[:-1, 0], gs[1:, 0], ls[1:]], axis=1))
+    ri, rs = _extend(gi[:, -2], gi[:, -1], gs[:, -2], gs[:, -1], 0, w - 0.5)
+    img.append(np.stack([gi[:-1, -1], ri[:-1], ri[1:], gi[1:, -1]], axis=1))
+    scr.append(np.stack([gs[:-1, -1], rs[:-1], rs[1:], gs[1:, -1]], axis=1))
+    return np.concatenate(img), np.concatenate(scr)
+
+
+def inverse_bilinear(quads: FloatArray, pts: FloatArray, iterations: int = 8) -> FloatArray:
+    """(s, t) of each point in each quad, (M, Q, 2): p = (1-s)(1-t) q0 + s(1-t) q1 +
+    s t q2 + (1-s) t q3, by Newton's method from the quad centre."""
+    q0, q1, q2, q3 = (quads[None, :, k] for k in range(4))
+    p = pts[:, None, :]
+    st = np.full((len(pts), len(quads), 2), 0.5)
+    for _ in range(iterations):
+        s, t = st[..., :1], st[..., 1:]
+        f = (1 - s) * (1 - t) * q0 + s * (1 - t) * q1 + s * t * q2 + (1 - s) * t * q3 - p
+        ds = (1 - t) * (q1 - q0) + t * (q2 - q3)
+        dt = (1 - s) * (q3 - q0) + s * (q2 - q1)
+        det = ds[..., 0] * dt[..., 1] - ds[..., 1] * dt[..., 0]
+        det = np.where(np.abs(det) < 1e-12, np.nan, det)
+        st[..., 0] -= (f[..., 0] * dt[..., 1] - f[..., 1] * dt[..., 0]) / det
+        st[..., 1] -= (ds[..., 0] * f[..., 1] - ds[..., 1] * f[..., 0]) / det
+    return st
+
+
+class CellMap:
+    """Interpolation in the basic regions of the landmark grid (``idw`` or ``bilinear``)."""
+
+    def __init__(self, grid: LandmarkGrid, image_size: tuple[int, int], *, kind: str) -> None:
+        if kind not in ("idw", "bilinear"):
+            raise ValueError(f"cell interpolation {kind!r}: 'idw' or 'bilinear'")
+        self.name = kind
+        self.grid = grid
+        self.image_size = image_size
+        self.quads_image, self.quads_screen = grid_cells(grid, image_size)
+
+    def params(self) -> Params:
+        n2 = self.grid.image.shape[0]
+        return {
+            "grid_image": self.grid.image.reshape(n2 * n2, 2),
+            "grid_screen": self.grid.screen.reshape(n2 * n2, 2),
+        }
+
+    def __call__(self, uv: FloatArray) -> FloatArray:
+        pts = _as_points(uv)
+        out = np.full(pts.shape, np.nan)
+        eps = 1e-6
+        for lo in range(0, len(pts), 4096):
+            chunk = pts[lo : lo + 4096]
+            st = inverse_bilinear(self.quads_image, chunk)
+            inside = np.all((st >= -eps) & (st <= 1 + eps), axis=2)
+            inside &= np.isfinite(st).all(axis=2)
+            has = inside.any(axis=1)
+            q = np.argmax(inside, axis=1)[has]
+            p = chunk[has]
+            corners_s = self.quads_screen[q]
+            if self.name == "bilinear":
+                s, t = st[has, q, :1], st[has, q, 1:]
+                res = (
+                    (1 - s) * (1 - t) * corners_s[:, 0]
+                    + s * (1 - t) * corners_s[:, 1]
+                    + s * t * corners_s[:, 2]
+                    + (1 - s) * t * corners_s[:, 3]
+                )
+            else:  # eqs. 5.4-5.5: w_k = 1 / d_k
+                d = np.hypot(*(self.quads_image[q] - p[:, None, :]).transpose(2, 0, 1))
+                wgt = 1.0 / np.maximum(d, 1e-9)
+                res = (wgt[..., None] * corners_s).sum(axis=1) / wgt.sum(axis=1)[:, None]
+            block = out[lo : lo + 4096]
+            block[has] = res
+        return out
+
+
+# ---------------------------------------------------------------- global homography
+
+
+class HomographyMap:
+    """One homography image -> screen (cv2.findHomography, all points, least squares)."""
+
+    name = "homography"
+
+    def __init__(self, hmat: FloatArray) -> None:
+        self.hmat = np.asarray(hmat, np.float64).reshape(3, 3)
+
+    @classmethod
+    def fit(cls, uv: FloatArray, xy: FloatArray) -> HomographyMap:
+        hmat, _ = cv2.findHomography(uv.astype(np.float64), xy.astype(np.float64), 0)
+        return cls(np.asarray(hmat, np.float64))
+
+    def params(self) -> Params:
+        return {"H": self.hmat}
+
+    def __call__(self, uv: FloatArray) -> FloatArray:
+        pts = _as_points(uv)
+        q = np.c_[pts, np.ones(len(pts))] @ self.hmat.T
+        return np.asarray(q[:, :2] / q[:, 2:], np.float64)
+
+
+# ---------------------------------------------------------------- radial + homography + residual
+
+
+def _radial_apply(p: FloatArray, pts: FloatArray, scale: float) -> FloatArray:
+    """Image px -> screen px of the radial model with parameter vector ``p``:
+    [cx, cy, k1, k2, k3, h11, h12, h13, h21, h22, h23, h31, h32] (h33 = 1)."""
+    c = p[:2]
+    q = (pts - c) / scale
+    r2 = (q**2).sum(axis=1, keepdims=True)
+    qu = q * (1 + p[2] * r2 + p[3] * r2**2 + p[4] * r2**3)
+    hm = np.append(p[5:], 1.0).reshape(3, 3)
+    h = np.c_[qu, np.ones(len(qu))] @ hm.T
+    return np.asarray(h[:, :2] / h[:, 2:], np.float64)
+
+
+class RadialMap:
+    """Radial undistortion + homography fitted to the dots, plus the bilinear
+    interpolation of its residuals over the dots' screen lattice."""
+
+    name = "radial"
+
+    def __init__(
+        self,
+        p: FloatArray,
+        scale: float,
+        residual: FloatArray,
+        lattice: FloatArray,
+    ) -> None:
+        self.p = np.asarray(p, np.float64)
+        self.scale = float(scale)
+        self.residual = np.asarray(residual, np.float64)  # (n, n, 2) screen px
+        self.lattice = np.asarray(lattice, np.float64)  # x0, y0, sx, sy of the dot lattice
+
+    @classmethod
+    def fit(
+        cls,
+        uv: FloatArray,
+        xy: FloatArray,
+        image_size: tuple[int, int],
+        lattice: FloatArray,
+        n: int,
+        found: NDArray[np.bool_],
+        *,
+        correct: bool = True,
+    ) -> RadialMap:
+        """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2)."""
+        w, h = image_size
+        scale = 0.5 * float(np.hypot(w, h))
+        c0 = np.array([(w - 1) / 2, (h - 1) / 2])
+        hmat, _ = cv2.findHomography((uv - c0) / scale, xy, 0)
+        hmat = np.asarray(hmat, np.float64) / hmat[2, 2]
+        p0 = np.concatenate([c0, [0.0, 0.0, 0.0], hmat.ravel()[:8]])
+        sx = float(np.ptp(xy[:, 0])) or 1.0
+
+        def resid(p: FloatArray, k: int) -> FloatArray:
+            pp = p.copy()
+            pp[2 + k : 5] = 0.0
+            return (_radial_apply(pp, uv, scale) - xy).ravel() / sx
+
+        p = p0
+        for k in (1, 2, 3):  # grow the radial series: stabler than all at once
+
+            def cost(q: FloatArray, k: int = k) -> FloatArray:
+                return resid(q, k)
+
+            p = levenberg_marquardt(cost, p)
+            p[2 + k : 5] = 0.0
+        model = cls(p, scale, np.zeros((n, n, 2)), lattice)
+        if correct:
+            res = np.zeros((n * n, 2))
+            res[found] = xy - _radial_apply(p, uv, scale)
+            model.residual = res.reshape(n, n, 2)
+        return model
+
+    def params(self) -> Params:
+        n = self.residual.shape[0]
+        return {
+            "radial_params": self.p,
+            "radial_scale": np.array([self.scale]),
+            "residual": self.residual.reshape(n * n, 2),
+            "lattice": self.lattice,
+        }
+
+    @classmethod
+    def from_params(cls, params: Params) -> RadialMap:
+        res = params["residual"]
+        n = math.isqrt(len(res))
+        return cls(
+            params["radial_params"].ravel(),
+            float(params["radial_scale"].ravel()[0]),
+            res.reshape(n, n, 2),
+            params["lattice"].ravel(),
+        )
+
+    def correction(self, xy: FloatArray) -> FloatArray:
+        """Bilinear interpolation of the dot residuals at screen ``xy`` (clamped at the
+        outer dots)."""
+        n = self.residual.shape[0]
+        x0, y0, sx, sy = self.lattice
+        fx = np.clip((xy[:, 0] - x0) / sx, 0, n - 1)
+        fy = np.clip((xy[:, 1] - y0) / sy, 0, n - 1)
+        fx = np.nan_to_num(fx)
+        fy = np.nan_to_num(fy)
+        ix = np.minimum(fx.astype(np.int64), n - 2)
+        iy = np.minimum(fy.astype(np.int64), n - 2)
+        ax, ay = (fx - ix)[:, None], (fy - iy)[:, None]
+        r = self.residual
+        return np.asarray(
+            (1 - ax) * (1 - ay) * r[iy, ix]
+            + ax * (1 - ay) * r[iy, ix + 1]
+            + ax * ay * r[iy + 1, ix + 1]
+            + (1 - ax) * ay * r[iy + 1, ix],
+            np.float64,
+        )
+
+    def __call__(self, uv: FloatArray) -> FloatArray:
+        xy = _radial_apply(self.p, _as_points(uv), self.scale)
+        return xy + self.correction(xy)
+
+
+def invert(fn: ImageToScreen, xy: FloatArray, uv0: FloatArray, iterations: int = 20) -> FloatArray:
+    """Image points that ``fn`` maps to screen ``xy``, by Newton's method from ``uv0``."""
+    uv = np.asarray(uv0, np.float64).copy()
+    e = 1e-3
+    for _ in range(iterations):
+        f0 = fn(uv) - xy
+        fu = (fn(uv + np.array([e, 0.0])) - f0 - xy) / e
+        fv = (fn(uv + np.array([0.0, e])) - f0 - xy) / e
+        det = fu[:, 0] * fv[:, 1] - fu[:, 1] * fv[:, 0]
+        du = (f0[:, 0] * fv[:, 1] - f0[:, 1] * fv[:, 0]) / det
+        dv = (fu[:, 0] * f0[:, 1] - fu[:, 1] * f0[:, 0]) / det
+        uv -= np.stack([du, dv], axis=1)
+    return uv
