@@ -1,0 +1,125 @@
+"""``laser-pointer`` tracker: the laser spot on a calibrated screen, in screen coordinates.
+
+A fixed camera watches a display or projection screen (dissertation ch. 5). Each
+frame, :class:`omnidev.laser.spot.SpotDetector` finds at most one laser spot
+(image pixels, sub-pixel) inside the calibrated screen region; the screen
+calibration maps it to screen pixels, and the sample is that position
+normalized by the screen size ((0, 0) the top-left pixel, (1, 1) the
+bottom-right one). No spot (or a spot outside the screen): None, and the daemon
+holds the pointer (and releases held buttons when it is lost).
+
+Calibration file: a screen calibration saved by ``omnidev calibrate screen``
+(:func:`omnidev.screencal.calibration.load_screen_calibration`); the camera
+frames must have its image size. Spots are looked for inside its screen region
+grown by 3 px (a spot at the very edge of the screen keeps its core).
+
+Options (all optional): ``colour`` ("red", default, "green" or "any"), and the
+detector's limits, see :class:`~omnidev.laser.spot.SpotDetector`: ``step``,
+``rise``, ``core``, ``colour_ratio``, ``min_area``, ``max_area``,
+``max_elongation``, ``min_fill``, ``change_fraction``, ``bands``, ``saturated``,
+``halo``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from omnidev import Frame, PointerSample
+from omnidev.errors import OmnidevError, TrackerError
+from omnidev.laser.spot import COLOURS, SpotDetector
+from omnidev.screencal.calibration import ScreenCalibration, load_screen_calibration
+
+INT_OPTIONS = ("step", "rise", "core", "saturated", "min_area", "max_area", "bands")
+FLOAT_OPTIONS = ("colour_ratio", "halo", "max_elongation", "min_fill", "change_fraction")
+OPTIONS = ("colour", *INT_OPTIONS, *FLOAT_OPTIONS)
+MASK_GROW_PX = 3  # candidates also this far outside the calibrated screen border
+
+
+class LaserPointer:
+    """Spot detection in the calibrated screen region, then image -> screen."""
+
+    def __init__(self, calibration: ScreenCalibration, detector: SpotDetector) -> None:
+        self.calibration = calibration
+        self.detector = detector
+        self.image_size = (int(calibration.image_size[0]), int(calibration.image_size[1]))
+        self.screen_size = (int(calibration.screen_size[0]), int(calibration.screen_size[1]))
+
+    def track(self, frame: Frame) -> PointerSample | None:
+        img = frame.image
+        h, w = img.shape[:2]
+        if img.ndim != 3 or img.shape[2] != 3:
+            raise TrackerError(
+                f"laser-pointer: frame {frame.index} is grey; the spot's colour needs BGR frames"
+            )
+        if (w, h) != self.image_size:
+            raise TrackerError(
+                f"laser-pointer: frame {frame.index} is {w}x{h}, the screen calibration is for "
+                f"{self.image_size[0]}x{self.image_size[1]} camera images"
+            )
+        spot = self.detector.detect(img)
+        if spot is None:
+            return None
+        xy = self.calibration.image_to_screen(np.array([[spot.u, spot.v]], dtype=np.float64))[0]
+        if not np.all(np.isfinite(xy)):
+            return None
+        sw, sh = self.screen_size
+        return PointerSample(
+            float(xy[0]) / (sw - 1), float(xy[1]) / (sh - 1), frame.timestamp_ns, confidence=1.0
+        )
+
+    def reset(self) -> None:
+        self.detector.reset()
+
+
+def _number(options: Mapping[str, Any], key: str, kind: type) -> Any:
+    try:
+        return kind(options[key])
+    except (TypeError, ValueError):
+        what = "a whole number" if kind is int else "a number"
+        raise TrackerError(f"laser-pointer: {key} must be {what}, got {options[key]!r}") from None
+
+
+def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> LaserPointer:
+    """Entry point: the calibration is a screen calibration file; options as documented."""
+    unknown = set(options) - set(OPTIONS)
+    if unknown:
+        raise TrackerError(
+            f"laser-pointer: unknown option {sorted(unknown)[0]!r} (options: {', '.join(OPTIONS)})"
+        )
+    colour = str(options.get("colour", "red"))
+    if colour not in COLOURS:
+        raise TrackerError(
+            f"laser-pointer: colour must be one of {', '.join(COLOURS)}, got {colour!r}"
+        )
+    kwargs: dict[str, Any] = {}
+    for key in INT_OPTIONS:
+        if key in options:
+            kwargs[key] = _number(options, key, int)
+    for key in FLOAT_OPTIONS:
+        if key in options:
+            kwargs[key] = _number(options, key, float)
+    if calibration is None:
+        raise TrackerError(
+            "laser-pointer: needs a screen calibration as its calibration file "
+            '([tracker] calibration = "screen.yml", made by omnidev calibrate screen)'
+        )
+    if not calibration.is_file():
+        raise TrackerError(f"laser-pointer: screen calibration {calibration} does not exist")
+    try:
+        cal = load_screen_calibration(calibration)
+    except OmnidevError as exc:
+        raise TrackerError(f"laser-pointer: {calibration}: {exc}") from None
+    # the screen region grown by MASK_GROW_PX: a spot at the very edge keeps its core
+    mask = cv2.dilate(
+        np.asarray(cal.screen_mask(), np.uint8), np.ones((2 * MASK_GROW_PX + 1,) * 2, np.uint8)
+    ).astype(bool)
+    try:
+        detector = SpotDetector(colour, mask, **kwargs)
+    except ValueError as exc:
+        raise TrackerError(f"laser-pointer: {exc}") from None
+    return LaserPointer(cal, detector)
