@@ -64,6 +64,7 @@ def register(sub: Any) -> None:
     pt.add_argument("--plot", type=Path, help="PNG of the fitted function (default: OUTPUT.png)")
     pt.add_argument("--force", action="store_true", help="overwrite existing outputs")
     pt.set_defaults(func=run)
+    _register_screen(csub)
 
 
 def _size(text: str, what: str) -> tuple[int, int]:
@@ -155,3 +156,211 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {out}")
     print(f"wrote {plot}")
     return 0
+
+
+# ---------------------------------------------------------------- calibrate screen (ch. 5)
+
+
+def _register_screen(csub: Any) -> None:
+    sc = csub.add_parser(
+        "screen",
+        help="calibrate camera image -> screen pixels from three patterns (dissertation ch. 5)",
+        description="Calibrate a fixed camera watching a screen from captured white, black "
+        "and dot-matrix images (--white/--black/--dots), or show the patterns on a "
+        "framebuffer and capture them (--show/--source), or write the patterns as PNG "
+        "(--write-patterns).",
+    )
+    sc.add_argument("--white", type=Path, help="captured image of the white pattern")
+    sc.add_argument("--black", type=Path, help="captured image of the black pattern")
+    sc.add_argument("--dots", type=Path, help="captured image of the dot-matrix pattern")
+    sc.add_argument("--n", type=int, default=9, help="dots per row and column (default 9)")
+    sc.add_argument("--screen", metavar="WxH", help="screen resolution (default 1920x1080)")
+    sc.add_argument("--method", default=None, help="image->screen method (default radial)")
+    sc.add_argument("-o", "--output", type=Path, help="calibration file (.yml or .yml.gz)")
+    sc.add_argument("--plot", type=Path, help="PNG of the error vectors (needs --truth)")
+    sc.add_argument(
+        "--truth",
+        type=Path,
+        help="a rendered fixture's truth.json: print every method's error on held-out points",
+    )
+    sc.add_argument(
+        "--recaptured", type=Path, help="a re-captured dot image to evaluate (Fig. 5.14)"
+    )
+    sc.add_argument("--write-patterns", type=Path, metavar="DIR", help="write the three PNGs")
+    sc.add_argument("--show", metavar="/dev/fbN", help="show the patterns on this framebuffer")
+    sc.add_argument("--source", help="capture source while --show (e.g. v4l2:/dev/video0)")
+    sc.add_argument(
+        "--settle", type=int, default=10, help="frames dropped after each pattern change"
+    )
+    sc.add_argument("--average", type=int, default=4, help="frames averaged per pattern")
+    sc.add_argument("--save-captures", type=Path, metavar="DIR", help="keep the captured PNGs")
+    sc.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    sc.set_defaults(func=run_screen)
+
+
+def _write_png(path: Path, image: np.ndarray[Any, Any], force: bool) -> None:
+    from omnidev.atomic import atomic_path
+
+    with atomic_path(path, force=force) as tmp:
+        if not cv2.imwrite(str(tmp), image):
+            raise CalibrationError(f"{path}: cannot write PNG")
+
+
+def _read_grey(path: Path, what: str) -> np.ndarray[Any, Any]:
+    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise CalibrationError(f"{path}: cannot read the {what} image")
+    return np.asarray(img, np.uint8)
+
+
+def _capture(args: argparse.Namespace, size: tuple[int, int]) -> list[np.ndarray[Any, Any]]:
+    """Show white, black and dots on the framebuffer; grab each from the source."""
+    from omnidev.screencal.framebuffer import Framebuffer
+    from omnidev.screencal.patterns import black_pattern, dot_pattern, white_pattern
+    from omnidev.sources import open_source
+
+    if not args.source:
+        raise CalibrationError("--show needs --source (the camera watching the screen)")
+    shots = []
+    with Framebuffer(args.show) as fb, open_source(args.source) as src:
+        w, h = fb.size
+        if args.screen and (w, h) != size:
+            raise CalibrationError(f"--screen {size[0]}x{size[1]} but {args.show} is {w}x{h}")
+        frames = iter(src)
+        patterns = (
+            ("white", white_pattern(w, h)),
+            ("black", black_pattern(w, h)),
+            ("dots", dot_pattern(w, h, args.n)[0]),
+        )
+        for name, pat in patterns:
+            print(f"showing the {name} pattern on {args.show} ({w}x{h}); capturing", flush=True)
+            fb.show(pat)
+            acc = None
+            for k in range(args.settle + args.average):
+                frame = next(frames, None)
+                if frame is None:
+                    raise CalibrationError(f"{args.source}: no more frames while capturing {name}")
+                if k >= args.settle:
+                    g = np.asarray(frame.image, np.float64)
+                    if g.ndim == 3:
+                        g = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY).astype(np.float64)
+                    acc = g if acc is None else acc + g
+            assert acc is not None
+            shots.append(np.clip(acc / max(args.average, 1) + 0.5, 0, 255).astype(np.uint8))
+        fb.show(black_pattern(w, h))
+    return shots
+
+
+def run_screen(args: argparse.Namespace) -> int:
+    from omnidev.screencal.calibration import (
+        DEFAULT_METHOD,
+        METHODS,
+        detect_screen,
+        fit_calibration,
+    )
+
+    size = _size(args.screen, "--screen") if args.screen else (1920, 1080)
+    method = args.method or DEFAULT_METHOD
+    if method not in METHODS:
+        raise CalibrationError(f"--method {method!r}: choose from {', '.join(METHODS)}")
+    if args.n < 2:
+        raise CalibrationError(f"--n {args.n}: at least 2")
+    if args.write_patterns is not None:
+        from omnidev.atomic import atomic_dir
+        from omnidev.screencal.patterns import black_pattern, dot_pattern, white_pattern
+
+        w, h = size
+        with atomic_dir(args.write_patterns, force=args.force) as tmp:
+            _write_png(tmp / "white.png", white_pattern(w, h), True)
+            _write_png(tmp / "black.png", black_pattern(w, h), True)
+            _write_png(tmp / "dots.png", dot_pattern(w, h, args.n)[0], True)
+        for name in ("white", "black", "dots"):
+            print(f"wrote {args.write_patterns / (name + '.png')} ({w}x{h})")
+        if args.output is None:
+            return 0
+    if args.output is None:
+        raise CalibrationError("give -o/--output for the calibration file")
+    check_output(args.output, force=args.force)
+    if args.plot is not None:
+        check_output(args.plot, force=args.force)
+        if args.truth is None:
+            raise CalibrationError("--plot needs --truth (a rendered fixture's truth.json)")
+    if args.show:
+        white, black, dots = _capture(args, size)
+        if args.save_captures is not None:
+            from omnidev.atomic import atomic_dir
+
+            with atomic_dir(args.save_captures, force=args.force) as tmp:
+                for name, img in (("white", white), ("black", black), ("dots", dots)):
+                    _write_png(tmp / f"{name}.png", img, True)
+    else:
+        missing = [k for k in ("white", "black", "dots") if getattr(args, k) is None]
+        if missing:
+            raise CalibrationError(
+                "give --white, --black and --dots (missing: "
+                + ", ".join("--" + m for m in missing)
+                + "), or --show /dev/fbN --source URI"
+            )
+        white = _read_grey(args.white, "white")
+        black = _read_grey(args.black, "black")
+        dots = _read_grey(args.dots, "dot-matrix")
+    print("finding the screen border and the dots ...", flush=True)
+    features = detect_screen(white, black, dots, n=args.n, screen_size=size)
+    calib = fit_calibration(features, method)
+    v = features.border.vertices
+    print(
+        "screen border polygon P0..P7 (image px): " + " ".join(f"({x:.1f},{y:.1f})" for x, y in v)
+    )
+    print(f"dots used: {calib.dots_used} of {args.n * args.n}; method {method}")
+    if args.truth is not None:
+        _compare(args, features, size)
+    calib.save(args.output, force=args.force)
+    print(f"wrote {args.output}")
+    return 0
+
+
+def _compare(args: argparse.Namespace, features: Any, size: tuple[int, int]) -> None:
+    """Every method's error against a rendered fixture's exact mapping (and Fig. 5.14)."""
+    from omnidev.screencal.calibration import METHODS, fit_calibration
+    from omnidev.screencal.evaluate import MethodErrors, compare_methods, heldout_grid, table
+    from omnidev.screencal.plots import plot_error_vectors
+    from omnidev.sim.screen import load_screen_fixture, screen_to_image
+
+    rig, _ = load_screen_fixture(args.truth.parent)
+    xy = heldout_grid(size)
+    uv = screen_to_image(rig, xy)
+    rows = compare_methods(features, uv, xy)
+    print(f"held-out screen points: {len(xy)} (every 20 px, border pixels included)")
+    print(table(rows))
+    if args.plot is not None:
+        plot_error_vectors(
+            rows,
+            args.plot,
+            size,
+            title=f"held-out points, {args.truth.parent.name}",
+            dots=features.screen_dots,
+            force=args.force,
+        )
+        print(f"wrote {args.plot}")
+    if args.recaptured is not None:
+        from omnidev.screencal.calibration import detect_screen
+
+        d2 = _read_grey(args.recaptured, "re-captured dot")
+        again = detect_screen(
+            _read_grey(args.white, "white"),
+            _read_grey(args.black, "black"),
+            d2,
+            n=args.n,
+            screen_size=size,
+        )
+        ok = again.dots.found
+        rec = [
+            MethodErrors(
+                m,
+                features.screen_dots[ok],
+                fit_calibration(features, m).image_to_screen(again.dots.centers[ok]),
+            )
+            for m in METHODS
+        ]
+        print(f"re-captured dot image (Fig. 5.14): {int(ok.sum())} dots")
+        print(table(rec))
