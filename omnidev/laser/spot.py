@@ -492,19 +492,23 @@ class SpotDetector:
         """Whether the light added around blob ``sel`` is of the laser's colour.
 
         Over the halo (the blob grown by 3 px, where the laser channel is not
-        clipped), the laser channel's rise ``d`` must be at least ``colour_ratio``
-        times the rise of the strongest other channel. Clipped pixels say nothing
-        about colour: a spot's core is white, and on bright content its halo
-        clips the laser channel too.
+        clipped), the laser channel must have risen at least ``colour_ratio``
+        times as much as the strongest other channel, each rise counted as a
+        fraction of the room its channel had below 255 (on content of the
+        laser's own colour the laser channel has little room left). Clipped
+        pixels say nothing about colour: a spot's core is white, and on bright
+        content its halo clips the laser channel too.
         """
         grown = cv2.dilate(sel.view(np.uint8), self._ring_kernel).view(bool)
         halo = grown & (win[:, :, c] < self.saturated)
-        n = int(np.count_nonzero(halo))
-        if n == 0:
+        if not halo.any():
             return False
+        dh = d[halo].astype(np.float64)  # (n, 3) rise of each channel
+        room = 256.0 - (win[halo].astype(np.float64) - dh)  # 256 - the model's level
+        rel = dh.clip(0.0) / room
         others = [o for o in (0, 1, 2) if o != c]
-        rise_c = float(d[:, :, c][halo].clip(0).sum())
-        rise_o = float(np.maximum(d[:, :, others[0]], d[:, :, others[1]])[halo].clip(0).sum())
+        rise_c = float(rel[:, c].sum())
+        rise_o = float(np.maximum(rel[:, others[0]], rel[:, others[1]]).sum())
         return rise_c > 0 and rise_c >= self.colour_ratio * rise_o
 
     def _halo_coloured(self, win: NDArray[np.uint8], sel: NDArray[np.bool_], c: int) -> bool:
