@@ -25,6 +25,7 @@ SUBCOMMANDS = (
     "ctl_cmd",
     "replay_cmd",
     "mouse_cmd",
+    "laser_cmd",
 )
 
 

@@ -1,0 +1,48 @@
+"""``omnidev laser SOURCE --calibration FILE --sink NAME``: the laser pointer in the foreground.
+
+Runs the daemon's pipeline (source -> laser-pointer tracker -> One Euro filter
+-> sink) on any source into any sink, until a file source ends or Ctrl-C /
+SIGTERM; a spot that vanishes and every exit release the pointer buttons.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from omnidev.cli.foreground import add_pointer_arguments
+from omnidev.errors import OmnidevError
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "laser",
+        help="run the laser pointer (a fixed camera watching a calibrated screen) into a sink",
+        description=__doc__.splitlines()[0] if __doc__ else None,
+    )
+    p.add_argument("source", help="source URI or path (v4l2:/dev/video0, a video file, ...)")
+    p.add_argument(
+        "--calibration",
+        required=True,
+        type=Path,
+        help="the screen calibration written by `omnidev calibrate screen`",
+    )
+    p.add_argument(
+        "--colour", choices=("red", "green", "any"), default="red", help="the laser's colour"
+    )
+    add_pointer_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from omnidev.cli.foreground import run_foreground
+
+    if not args.calibration.is_file():
+        raise OmnidevError(f"{args.calibration}: screen calibration file not found")
+    tracker = {
+        "name": "laser-pointer",
+        "calibration": str(args.calibration.resolve()),
+        "options": {"colour": args.colour},
+    }
+    return run_foreground(args, "laser", tracker)
