@@ -130,7 +130,33 @@ def detect_screen(
     image_size = (w.shape[1], w.shape[0])
     if subpixel:
         det = _unbias(det, grid.centers, grid.radius_px, image_size, lattice)
+    _check_alignment(det, border, grid.centers, image_size, screen_size, lattice)
     return ScreenFeatures(image_size, screen_size, n, tdm, border, det, grid.centers, lattice)
+
+
+def _check_alignment(
+    det: DotDetection,
+    border: BorderPolygon,
+    screen_dots: FloatArray,
+    image_size: tuple[int, int],
+    screen_size: tuple[int, int],
+    lattice: FloatArray,
+) -> None:
+    """The dots must agree with the border of the white/black images: the radial model
+    fitted to the dots maps the border's mid-side vertices P1, P3, P5, P7 to the
+    screen's edges, within a tenth of the dot spacing."""
+    found = det.found
+    model = RadialMap.fit(det.centers[found], screen_dots[found], image_size, lattice, det.n, found)
+    xy = model(border.vertices[[1, 3, 5, 7]])
+    sw, sh = screen_size
+    off = np.abs([xy[0, 1] + 0.5, xy[1, 0] - (sw - 0.5), xy[2, 1] - (sh - 0.5), xy[3, 0] + 0.5])
+    worst = float(np.max(off))
+    if not worst <= 0.1 * float(min(lattice[2], lattice[3])):
+        side = ("top", "right", "bottom", "left")[int(np.argmax(off))]
+        raise CalibrationError(
+            f"the dots do not line up with the screen border of the white/black images "
+            f"({side} edge off by {worst:.0f} screen px): different scenes, or the camera moved?"
+        )
 
 
 def _unbias(
@@ -141,16 +167,31 @@ def _unbias(
     lattice: FloatArray,
     samples: int = 48,
 ) -> DotDetection:
-    """Remove the perspective/distortion bias of the dots' brightness centroids.
+    """Drop dots cut by an occluder, and remove the perspective/distortion bias of the
+    dots' brightness centroids.
+
+    A dot whose centre strays from the radial model fitted to all dots by more than
+    6 x the median residual (and 1 % of the dot spacing) is dropped (partly hidden).
 
     A disc's image is not centred on the image of the disc's centre. With the radial
     model fitted to the raw centroids, each dot's outline (``samples`` points of the
     screen circle) is mapped into the image; the area centroid of that polygon minus
     the image of the centre is the bias, subtracted from the measured centre.
     """
-    found = det.found
+    found = det.found.copy()
     uv, xy = det.centers[found], screen_dots[found]
     model = RadialMap.fit(uv, xy, image_size, lattice, det.n, found, correct=False)
+    # dots cut by an occluder: their centroids stray from the model fitted to all
+    res = np.hypot(*(model(uv) - xy).T)
+    bad = res > max(6.0 * float(np.median(res)), 0.01 * float(min(lattice[2], lattice[3])))
+    if bad.any() and (~bad).sum() >= min_dots(det.n):
+        idx = np.flatnonzero(found)[bad]
+        found[idx] = False
+        centers = det.centers.copy()
+        centers[idx] = np.nan
+        det = replace(det, centers=centers, found=found)
+        uv, xy = det.centers[found], screen_dots[found]
+        model = RadialMap.fit(uv, xy, image_size, lattice, det.n, found, correct=False)
     a = np.arange(samples) * 2 * np.pi / samples
     ring = xy[:, None, :] + radius * np.stack([np.cos(a), np.sin(a)], axis=1)[None]
     start = np.repeat(uv, samples, axis=0)

@@ -159,6 +159,23 @@ def _centroid(
     return xi + float((wgt * gx).sum()) / s, yi + float((wgt * gy).sum()) / s
 
 
+def _affine_guess(centers: FloatArray, i: int, j: int, rough: FloatArray) -> FloatArray:
+    """Where dot (i, j) should be from an affine fit (grid index -> image px) to the six
+    found dots nearest to it in the grid; ``rough`` if fewer than three are found."""
+    n = centers.shape[0]
+    gi, gj = np.mgrid[0:n, 0:n]
+    ok = np.isfinite(centers[..., 0])
+    if ok.sum() < 3:
+        return rough
+    d = np.hypot(gi[ok] - i, gj[ok] - j)
+    near = np.argsort(d, kind="stable")[:6]
+    a = np.c_[gj[ok][near], gi[ok][near], np.ones(len(near))]
+    if np.linalg.matrix_rank(a) < 3:
+        return rough
+    coef, *_ = np.linalg.lstsq(a, centers[ok][near], rcond=None)
+    return np.asarray(np.array([j, i, 1.0]) @ coef, np.float64)
+
+
 def find_dots(
     dots: NDArray[np.uint8],
     white: NDArray[np.uint8],
@@ -228,7 +245,6 @@ def find_dots(
     )
     for i, j in order:
         rough = c0 + np.array([(j - q0) * wg, (i - r0) * hg])  # rough CMP cross
-        pred = rough
         # move the cross by its found neighbours towards C0 (linear extrapolation)
         si, sj = int(np.sign(r0 - i)), int(np.sign(q0 - j))
         guesses = []
@@ -244,8 +260,7 @@ def find_dots(
             if np.isfinite(a).all():
                 step = (a - b) if np.isfinite(b).all() else np.array([-dj * wg, -di * hg])
                 guesses.append(a + step)
-        if guesses:
-            pred = np.mean(guesses, axis=0)
+        pred = np.mean(guesses, axis=0) if guesses else _affine_guess(centers, i, j, rough)
         d = pts - pred
         inside = (np.abs(d[:, 0]) < wg / 2) & (np.abs(d[:, 1]) < hg / 2) & ~used
         if not inside.any():

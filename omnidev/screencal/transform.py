@@ -243,7 +243,8 @@ class RadialMap:
             return (_radial_apply(pp, uv, scale) - xy).ravel() / sx
 
         p = p0
-        for k in (1, 2, 3):  # grow the radial series: stabler than all at once
+        terms = 3 if found.all() else 2  # a partial grid: fewer terms extrapolate better
+        for k in range(1, terms + 1):  # grow the radial series: stabler than all at once
 
             def cost(q: FloatArray, k: int = k) -> FloatArray:
                 return resid(q, k)
