@@ -19,7 +19,9 @@ Frames (mm, rad). Base frame (x_b, y_b, z_b): origin at the centre of the mirror
 base circle, z_b = 0 on the base plane (the ring's plane), z_b pointing from the
 camera towards the mirror base. Camera frame (x, y, z): origin at the lens centre,
 z along the optical axis towards the mirror, x along the image's columns, y along its
-rows (down). Eq. 2.4: ``x_cam = R x_b + T`` with R = ``Pose(pitch, yaw, tilt).R()``.
+rows (down). Tsai's result is eq. 2.4, ``x_cam = R_t x_b + T_t``; the model's
+:class:`Pose` is eq. 2.13, ``x_b = R^T x_cam - T``, so R = R_t and T = R_t^T T_t, with
+R = Rz(tilt) Ry(yaw) Rx(pitch).
 Pixels (u_f, v_f): centre of the top-left pixel = (0, 0). Distorted sensor
 coordinates (u_d, v_d) in mm on the sensor (eq. 2.11); ideal ones (u, v) from the lens
 model (eq. 2.8); kappa in mm^-2 in the lens's sign convention.
