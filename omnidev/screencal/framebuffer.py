@@ -3,9 +3,12 @@
 The hardware adapter of screen calibration: reads the device's
 ``fb_var_screeninfo`` (resolution, bits per pixel, colour bit fields) and
 ``fb_fix_screeninfo`` (line length) with the FBIOGET_* ioctls and writes the
-picture row by row at the visible offset. ``fcntl`` is imported only here, and
-only when a device is opened. :func:`pack_pixels` (the pixel-format conversion)
-is pure numpy.
+picture row by row at the visible offset. While it is open the active virtual
+console is switched to graphics mode (KDSETMODE KD_GRAPHICS on /dev/tty0), so the
+text console stops drawing over the picture (its blinking cursor would otherwise
+land on the patterns); text mode is restored on close. ``fcntl`` is imported
+only here, and only when a device is opened. :func:`pack_pixels` (the
+pixel-format conversion) is pure numpy.
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ from numpy.typing import NDArray
 
 from omnidev.errors import OutputError
 
+KDSETMODE = 0x4B3A
+KD_TEXT, KD_GRAPHICS = 0, 1
 FBIOGET_VSCREENINFO = 0x4600
 FBIOGET_FSCREENINFO = 0x4602
 _VAR_SIZE = 160
@@ -130,6 +135,7 @@ class Framebuffer:
             os.close(self.fd)
             raise OutputError(f"{self.path}: not a framebuffer ({exc.strerror})") from None
         self.format = parse_screeninfo(bytes(var), bytes(fix))
+        self._tty = _console_graphics(True)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -144,6 +150,9 @@ class Framebuffer:
         os.pwrite(self.fd, data, offset)
 
     def close(self) -> None:
+        if self._tty is not None:
+            _console_graphics(False, self._tty)
+            self._tty = None
         os.close(self.fd)
 
     def __enter__(self) -> Framebuffer:
@@ -153,3 +162,31 @@ class Framebuffer:
         self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
     ) -> None:
         self.close()
+
+
+def _console_graphics(on: bool, fd: int | None = None) -> int | None:
+    """Switch the active virtual console to graphics (``on``) or back to text mode.
+
+    Returns the open /dev/tty0 descriptor while in graphics mode, or None when
+    there is no console to switch (no tty0, no permission: then the text console
+    may draw its cursor over the picture).
+    """
+    import fcntl
+
+    if on:
+        try:
+            fd = os.open("/dev/tty0", os.O_RDWR | os.O_NOCTTY)
+        except OSError:
+            return None
+        try:
+            fcntl.ioctl(fd, KDSETMODE, KD_GRAPHICS)
+        except OSError:
+            os.close(fd)
+            return None
+        return fd
+    if fd is not None:
+        try:
+            fcntl.ioctl(fd, KDSETMODE, KD_TEXT)
+        finally:
+            os.close(fd)
+    return None

@@ -9,6 +9,7 @@ kernel reports. Truth: the pattern images and the kernel's own pixel format.
 from __future__ import annotations
 
 import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -19,23 +20,28 @@ from omnidev.screencal.framebuffer import Framebuffer, pack_pixels
 from omnidev.screencal.patterns import black_pattern, dot_pattern, white_pattern
 
 
+def _fb_names() -> dict[str, str]:
+    return {
+        f.parent.name: f.read_text().strip() for f in Path("/sys/class/graphics").glob("fb*/name")
+    }
+
+
 def _vfb_node() -> Path:
-    before = set(Path("/dev").glob("fb*"))
+    """The /dev/fbN of the kernel's virtual framebuffer (other framebuffers, such as
+    vivid's overlay one, may exist beside it)."""
     subprocess.run(
         ["modprobe", "vfb", "vfb_enable=1", "videomemorysize=4194304"],
         check=True,
         capture_output=True,
     )
-    subprocess.run(["udevadm", "settle"], check=False, capture_output=True)
-    for name_file in Path("/sys/class/graphics").glob("fb*/name"):
-        if "Virtual FB" in name_file.read_text():
-            node = Path("/dev") / name_file.parent.name
-            if node.exists():
+    deadline = time.monotonic() + 30.0  # a deadline against hanging, not a timing test
+    while time.monotonic() < deadline:
+        for fb, name in _fb_names().items():
+            node = Path("/dev") / fb
+            if name == "Virtual FB" and node.exists():
                 return node
-    new = sorted(set(Path("/dev").glob("fb*")) - before)
-    if not new:
-        pytest.fail("modprobe vfb gave no /dev/fbN")
-    return new[0]
+        time.sleep(0.05)
+    pytest.fail(f"modprobe vfb gave no /dev/fbN named 'Virtual FB' (framebuffers: {_fb_names()})")
 
 
 @pytest.fixture(scope="module")
