@@ -13,8 +13,11 @@ at the filled pixels. Figures (medians, ms):
 - inpaint_telea_ms: cv2.inpaint(raw, holes, 3, INPAINT_TELEA), the peer.
 - edge_preserving_vs_telea: edge_preserving_ms / inpaint_telea_ms.
 - dissertation_ms_320x240: the dissertation's figures (P4 3 GHz; Fig. 3.6).
-Other parts of the pipeline (back-projection, dense map build) add their keys
-through further ``bench_*`` functions merged by ``run``.
+- backprojection_ms: omnidev.nonsvp.unwarp.backprojected_view of a 1280x960
+  omni-image (the larger-misalignment camera) onto a 1280x960 side view: every
+  pixel back-projected by the dissertation's equations, rays cut with the plane.
+- dense_map_ms: omnidev.nonsvp.unwarp.dense_maps for a 1280x960 view (numerical
+  forward projection of every view pixel); dense_remap_ms: applying them.
 """
 
 from __future__ import annotations
@@ -85,9 +88,32 @@ def bench_interpolation(reps: int) -> dict[str, Any]:
     }
 
 
+def bench_unwarp(reps: int) -> dict[str, Any]:
+    """Back-projection and dense-map timings on the larger-misalignment camera."""
+    import dataclasses
+
+    from omnidev.nonsvp.unwarp import backprojected_view, dense_maps
+    from omnidev.sim.nonsvp import dissertation_planes, preset_camera
+
+    cam = preset_camera("large", SIZE)
+    view = dataclasses.replace(dissertation_planes()["side_0"], width=SIZE[0], height=SIZE[1])
+    omni = cv2.resize(cv2.imread(str(FIXTURE), cv2.IMREAD_COLOR), SIZE)
+    maps: list[Any] = []
+    back = _median_ms(lambda: backprojected_view(cam, omni, view), max(1, reps // 3))
+    dense = _median_ms(lambda: maps.append(dense_maps(cam, view)), max(1, reps // 3))
+    mx, my, _ = maps[-1]
+    remap = _median_ms(lambda: cv2.remap(omni, mx, my, cv2.INTER_LINEAR), reps)
+    return {
+        "backprojection_ms": round(back, 1),
+        "dense_map_ms": round(dense, 1),
+        "dense_remap_ms": round(remap, 2),
+    }
+
+
 def run(quick: bool = False) -> dict[str, Any]:
     cv2.setNumThreads(1)
     reps = 3 if quick else 9
     result: dict[str, Any] = {"threads": 1}
     result.update(bench_interpolation(reps))
+    result.update(bench_unwarp(reps))
     return result

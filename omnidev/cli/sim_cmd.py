@@ -54,6 +54,9 @@ def register(sub: Any) -> None:
     from omnidev.cli.sim_screen_cmd import register_screen
 
     register_screen(ssub)
+    from omnidev.cli.sim_nonsvp_cmd import register_nonsvp
+
+    register_nonsvp(ssub)
 
 
 def run(args: argparse.Namespace) -> int:
