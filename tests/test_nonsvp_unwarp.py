@@ -91,3 +91,55 @@ def test_backprojected_view_and_chapter_3_interpolation():
     for v in results.values():
         assert np.array_equal(v[filled], raw[filled])  # filled pixels untouched
     assert p_filled >= 18.0
+
+
+def quality_rows(name: str, pose: str, size: tuple[int, int]) -> dict[str, dict[str, float]]:
+    """PSNR / SSIM of every method on every view of one fixture (means over the views)."""
+    from omnidev.metrics import psnr as m_psnr
+    from omnidev.metrics import ssim as m_ssim
+    from omnidev.nonsvp.unwarp import backprojected_edges
+
+    cam = sim_nonsvp.preset_camera(pose, size)
+    rim = cv2.imread(str(FIX / name / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
+    vs, us = np.nonzero(rim)
+    sums: dict[str, list[tuple[float, float]]] = {}
+    for view_name in ("top", "side_0", "side_1", "side_2", "side_3"):
+        omni, truth, mask = load(name, view_name)
+        view = sim_nonsvp.dissertation_planes(truth.shape[1], truth.shape[0])[view_name]
+        mx, my, ok = dense_maps(cam, view)
+        sx, sy, sok = svp_maps(cam, view, (float(us.mean()), float(vs.mean())))
+        raw, filled = backprojected_view(cam, omni, view)
+        edges = backprojected_edges(cam, omni, view)
+        out = {
+            "SVP assumption (eq. 2.1)": cv2.remap(omni, sx, sy, cv2.INTER_LINEAR),
+            "back-projection + 4NN": interp.interpolate_4nn(raw, filled),
+            "+ two-layered": interp.interpolate_two_layered(raw, filled),
+            "+ edge-preserving": interp.interpolate_edge_preserving(raw, filled, edges),
+            "+ cv2.inpaint Telea": cv2.inpaint(
+                raw, (~filled).astype(np.uint8), 3, cv2.INPAINT_TELEA
+            ),
+            "dense maps": cv2.remap(omni, mx, my, cv2.INTER_LINEAR),
+        }
+        m = mask & ok & sok
+        for k, img in out.items():
+            sums.setdefault(k, []).append((m_psnr(img, truth, m), m_ssim(img, truth, m)))
+    return {
+        k: {"psnr": float(np.mean([p for p, _ in v])), "ssim": float(np.mean([s for _, s in v]))}
+        for k, v in sums.items()
+    }
+
+
+@pytest.mark.parametrize("name,pose,size", CASES, ids=[c[0] for c in CASES])
+def test_quality_table(name, pose, size):
+    """The issue's table (PSNR dB / SSIM against the rendered truth, mean over the top and
+    four side views). Asserted: dense maps best; every back-projection variant beats the
+    SVP assumption; edge-preserving vs 4NN is reported (over all pixels the dissertation's
+    claim does not hold here: see docs/nonsvp-interpolation.md)."""
+    rows = quality_rows(name, pose, size)
+    print(f"\n{name}: method, PSNR dB, SSIM (mean over top + 4 side views)")
+    for k, v in rows.items():
+        print(f"  {k:<28} {v['psnr']:6.2f}  {v['ssim']:.3f}")
+    dense = rows["dense maps"]
+    assert all(dense["psnr"] >= v["psnr"] for v in rows.values())
+    for k in ("back-projection + 4NN", "+ two-layered", "+ edge-preserving"):
+        assert rows[k]["psnr"] > rows["SVP assumption (eq. 2.1)"]["psnr"] + 3.0

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -47,16 +48,16 @@ def view_plane(view: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
     return o, du, dv
 
 
-def backprojected_view(
-    cam: NonSvpCamera, omni: NDArray[np.uint8], view: Any
-) -> tuple[NDArray[np.uint8], BoolArray]:
-    """The dissertation's raw unwarped view and where it is filled.
+def backprojected_values(
+    cam: NonSvpCamera, values: NDArray[Any], view: Any
+) -> tuple[NDArray[np.float64], BoolArray]:
+    """Back-project any per-pixel values of the omni-image onto ``view``.
 
     Each omni pixel's incident ray (from its mirror point, in O_m) is cut with the
     view's plane; its value lands on the nearest view pixel (several landing on one
-    pixel are averaged). Returns (raw (H, W[, 3]) uint8, filled (H, W) bool).
+    pixel are averaged). Returns (view values (H, W[, C]) float64, filled (H, W)).
     """
-    h, w = omni.shape[:2]
+    h, w = values.shape[:2]
     if (w, h) != tuple(cam.lens.size):
         raise ValueError(
             f"omni-image is {w}x{h}, the camera's is {cam.lens.size[0]}x{cam.lens.size[1]}"
@@ -81,7 +82,7 @@ def backprojected_view(
     ri = np.rint(ab[:, 1])
     ok &= (ci >= 0) & (ci < W) & (ri >= 0) & (ri < H)
     idx = (ri[ok] * W + ci[ok]).astype(np.int64)
-    src = omni.reshape(h * w, -1)[ok].astype(np.float64)
+    src = values.reshape(h * w, -1)[ok].astype(np.float64)
     count = np.bincount(idx, minlength=H * W).astype(np.float64)
     chans = src.shape[1]
     acc = np.stack(
@@ -90,10 +91,30 @@ def backprojected_view(
     filled = count > 0
     out = np.zeros((H * W, chans))
     out[filled] = acc[filled] / count[filled, None]
-    raw = np.clip(out + 0.5, 0, 255).astype(np.uint8).reshape((H, W, chans))
-    if omni.ndim == 2:
-        raw = raw[:, :, 0]
-    return raw, filled.reshape(H, W)
+    out = out.reshape((H, W, chans))
+    return (out[:, :, 0] if values.ndim == 2 else out), filled.reshape(H, W)
+
+
+def backprojected_view(
+    cam: NonSvpCamera, omni: NDArray[np.uint8], view: Any
+) -> tuple[NDArray[np.uint8], BoolArray]:
+    """The dissertation's raw unwarped view (uint8, like ``omni``) and where it is filled
+    (:func:`backprojected_values` of the omni-image's pixels)."""
+    out, filled = backprojected_values(cam, omni, view)
+    return np.clip(out + 0.5, 0, 255).astype(np.uint8), filled
+
+
+def backprojected_edges(
+    cam: NonSvpCamera, omni: NDArray[np.uint8], view: Any
+) -> NDArray[np.float32]:
+    """The edge-value image of sec. 3.2.2 on ``view``: the omni-image's Sobel edge value
+    (:func:`omnidev.nonsvp.interp.sobel_edge_value`), unwarped the same way as its
+    pixels; 0 where no omni pixel landed."""
+    from omnidev.nonsvp.interp import sobel_edge_value
+
+    gray = np.asarray(omni if omni.ndim == 2 else cv2.cvtColor(omni, cv2.COLOR_BGR2GRAY), np.uint8)
+    e, _ = backprojected_values(cam, sobel_edge_value(gray), view)
+    return e.astype(np.float32)
 
 
 def dense_maps(
