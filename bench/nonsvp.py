@@ -18,6 +18,7 @@ at the filled pixels. Figures (medians, ms):
   pixel back-projected by the dissertation's equations, rays cut with the plane.
 - dense_map_ms: omnidev.nonsvp.unwarp.dense_maps for a 1280x960 view (numerical
   forward projection of every view pixel); dense_remap_ms: applying them.
+- *_vs_telea: each of these over inpaint_telea_ms, measured in the same run.
 """
 
 from __future__ import annotations
@@ -116,4 +117,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     result: dict[str, Any] = {"threads": 1}
     result.update(bench_interpolation(reps))
     result.update(bench_unwarp(reps))
+    telea = result["inpaint_telea_ms"]
+    for key in ("backprojection_ms", "dense_map_ms", "dense_remap_ms"):
+        result[key.replace("_ms", "_vs_telea")] = round(result[key] / telea, 3)
     return result
