@@ -13,16 +13,7 @@ from omnidev.sinks.record import read_events
 
 
 def layout_dict():
-    return {
-        "screen_width_mm": mon.SCREEN_W * 1000,
-        "screen_height_mm": mon.SCREEN_H * 1000,
-        "offsets_mm": {
-            k: [ox * 1000, oy * 1000]
-            for k, (ox, oy) in zip(("tl", "tr", "br", "bl"), mon.LANDMARK_OFFSETS, strict=True)
-        },
-        "circle_diameter_mm": mon.LANDMARK_RADIUS * 2000,
-        "square_side_mm": mon.LANDMARK_SQUARE * 1000,
-    }
+    return mon.landmark_layout()
 
 
 def test_mouse_cli_errors(tmp_path, capsys):

@@ -27,16 +27,7 @@ from omnidev.sim import monitor as mon
 from omnidev.sim.handcam import HandCamera
 from omnidev.tracking import open_tracker
 
-LAYOUT = {
-    "screen_width_mm": mon.SCREEN_W * 1000,
-    "screen_height_mm": mon.SCREEN_H * 1000,
-    "offsets_mm": {
-        k: [ox * 1000, oy * 1000]
-        for k, (ox, oy) in zip(("tl", "tr", "br", "bl"), mon.LANDMARK_OFFSETS, strict=True)
-    },
-    "circle_diameter_mm": mon.LANDMARK_RADIUS * 2000,
-    "square_side_mm": mon.LANDMARK_SQUARE * 1000,
-}
+LAYOUT = mon.landmark_layout()
 CAM = HandCamera.default()
 FPS = 30.0
 FRAMES = int(os.environ.get("OMNIDEV_TUNING_FRAMES", "60"))
