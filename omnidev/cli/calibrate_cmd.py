@@ -65,6 +65,9 @@ def register(sub: Any) -> None:
     pt.add_argument("--force", action="store_true", help="overwrite existing outputs")
     pt.set_defaults(func=run)
     _register_screen(csub)
+    from omnidev.cli.nonsvp_cmd import register_calibrate
+
+    register_calibrate(csub)
 
 
 def _size(text: str, what: str) -> tuple[int, int]:

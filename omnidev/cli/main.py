@@ -26,6 +26,7 @@ SUBCOMMANDS = (
     "replay_cmd",
     "mouse_cmd",
     "laser_cmd",
+    "nonsvp_cmd",
 )
 
 
