@@ -8,7 +8,6 @@ import argparse
 import signal
 import sys
 import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
@@ -78,7 +77,7 @@ def run_foreground(
         },
     }
     config = parse_config(doc, Path(f"omnidev {name}"))
-    pipeline = Pipeline(config)
+    pipeline = Pipeline(config, stop_at_end=ends)
     if check is not None:
         check(pipeline, config)
     stop = threading.Event()
@@ -90,15 +89,13 @@ def run_foreground(
     pipeline.start()
     try:
         while not stop.wait(0.1):
-            if not pipeline.alive:
+            if pipeline.fatal is None and pipeline.ended.is_set():
+                break  # the file ended
+            if pipeline.fatal is not None or not pipeline.alive:
                 pipeline.stop()
                 raise OmnidevError(
                     pipeline.fatal or "the pipeline stopped unexpectedly (see the log above)"
                 )
-            st = pipeline.status()
-            if ends and st["state"] == "waiting for camera":
-                break  # the file ended
-        time.sleep(0.05)
     finally:
         pipeline.stop()
         for s, h in old.items():

@@ -58,9 +58,14 @@ class Pipeline:
             call, from the worker thread (tests and benchmarks use it).
     """
 
-    def __init__(self, config: DaemonConfig, on_sample: Any = None) -> None:
+    def __init__(
+        self, config: DaemonConfig, on_sample: Any = None, *, stop_at_end: bool = False
+    ) -> None:
         self.config = config
         self.on_sample = on_sample
+        self.stop_at_end = stop_at_end  # a file run in the foreground: end, do not retry
+        self.ended = threading.Event()  # set when the source ended and stop_at_end
+        self._processed = 0  # frames the worker has taken and handled
         self.state = "starting"
         self.started = time.monotonic()
         self._stats = _Stats()
@@ -229,6 +234,11 @@ class Pipeline:
                         if self._stop.is_set() or self._restart_source.is_set():
                             break
                     else:
+                        if self.stop_at_end:
+                            self._wait_processed()  # every captured frame is processed
+                            self.state = "ended"
+                            self.ended.set()
+                            return
                         raise OmnidevError(f"{uri}: the source ended")
             except OmnidevError as exc:
                 self._drain()  # frames captured before the loss still count
@@ -240,6 +250,15 @@ class Pipeline:
                 self._lost.set()
                 self._wait_for_camera(exc, delay)
                 delay = min(delay * 2, self.config.retry_max_s)
+
+    def _wait_processed(self, timeout: float = 10.0) -> None:
+        """Wait until the worker has processed (or the queue dropped) every captured frame."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and not self._stop.is_set():
+            s = self._stats
+            if self._processed + s.dropped_frames >= s.frames or not self._worker.is_alive():
+                return
+            time.sleep(0.002)
 
     def _drain(self, timeout: float = 1.0) -> None:
         """Wait until the worker has taken every queued frame (or ``timeout`` s)."""
@@ -269,6 +288,7 @@ class Pipeline:
                     continue
                 if not self._paused.is_set():
                     self._process(frame)
+                self._processed += 1
         finally:
             try:
                 self.sink.close()
