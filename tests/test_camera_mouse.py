@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from omnidev.frame import Frame
+from omnidev.mouse.evaluate import cursor_error_px
 from omnidev.sim import monitor as mon
 from omnidev.sim.handcam import HandCamera
 from omnidev.tracking import open_tracker
@@ -114,9 +115,4 @@ def test_redetects_when_confidence_falls(layout_file):
     assert tracker.relocks == 1, "no re-detection while a landmark was predicted"
     assert all(tl_found[5:])  # re-locked on all four at the 5th weak frame
     last = out[-1]
-    assert last is not None and err_px(last, _Truth(truth[11]["screen_xy"])) < 1.0
-
-
-class _Truth:
-    def __init__(self, xy):
-        self.screen_xy = xy
+    assert last is not None and cursor_error_px((last.x, last.y), truth[11]["screen_xy"]) < 1.0

@@ -62,4 +62,4 @@ def test_calibrate_errors(tmp_path, capsys):
     assert "blank.png" in err and err.count("\n") == 0
     argv[argv.index("--mirror") + 1] = "20,30"
     assert main(argv) == 2
-    assert "expected 3 numbers" in capsys.readouterr().err
+    assert "--mirror must be 3 comma-separated" in capsys.readouterr().err

@@ -11,7 +11,12 @@ import numpy as np
 import pytest
 
 from omnidev.nonsvp import interp
-from omnidev.nonsvp.unwarp import backprojected_view, dense_maps, svp_maps
+from omnidev.nonsvp.unwarp import (
+    backprojected_edges,
+    backprojected_view,
+    dense_maps,
+    svp_maps,
+)
 from omnidev.sim import nonsvp as sim_nonsvp
 
 FIX = Path(__file__).resolve().parents[1] / "fixtures" / "nonsvp"
@@ -77,7 +82,7 @@ def test_backprojected_view_and_chapter_3_interpolation():
     m = mask & filled
     assert filled.mean() > 0.05
     p_filled = psnr(raw, truth, m)
-    edges = interp.sobel_edge_value(cv2.cvtColor(raw, cv2.COLOR_BGR2GRAY))
+    edges = backprojected_edges(cam, omni, view)
     holes = mask & ~filled
     results = {
         "4NN": interp.interpolate_4nn(raw, filled),
@@ -97,7 +102,6 @@ def quality_rows(name: str, pose: str, size: tuple[int, int]) -> dict[str, dict[
     """PSNR / SSIM of every method on every view of one fixture (means over the views)."""
     from omnidev.metrics import psnr as m_psnr
     from omnidev.metrics import ssim as m_ssim
-    from omnidev.nonsvp.unwarp import backprojected_edges
 
     cam = sim_nonsvp.preset_camera(pose, size)
     rim = cv2.imread(str(FIX / name / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0

@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 from omnidev.atomic import check_output
+from omnidev.cli.options import parse_size
 from omnidev.errors import CalibrationError
 from omnidev.landmarks import parse_floats, read_landmarks_csv
 from omnidev.omnicenter import detect_omni_circles
@@ -70,16 +71,6 @@ def register(sub: Any) -> None:
     register_calibrate(csub)
 
 
-def _size(text: str, what: str) -> tuple[int, int]:
-    try:
-        w, h = (int(x) for x in text.lower().split("x"))
-    except ValueError:
-        raise CalibrationError(f"{what} must look like 640x480, got {text!r}") from None
-    if w < 1 or h < 1:
-        raise CalibrationError(f"{what} must be positive, got {text!r}")
-    return w, h
-
-
 def run(args: argparse.Namespace) -> int:
     out: Path = args.output
     plot: Path = args.plot or out.with_name(out.name.split(".")[0] + "_fit.png")
@@ -95,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     if image is not None:
         size = (image.shape[1], image.shape[0])
     elif args.image_size:
-        size = _size(args.image_size, "--image-size")
+        size = parse_size(args.image_size, "--image-size")
     else:
         raise CalibrationError("give --image or --image-size")
     cutoff = args.cutoff_radius or 0.0
@@ -120,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     if args.elevation_range:
         lo, hi = parse_floats(args.elevation_range, 2, "--elevation-range")
         rho_range = (math.radians(lo), math.radians(hi))
-    table_size = _size(args.table_size, "--table-size") if args.table_size else None
+    table_size = parse_size(args.table_size, "--table-size") if args.table_size else None
     calib = calibrate(
         lm.uv,
         lm.xyz,
@@ -262,7 +253,7 @@ def run_screen(args: argparse.Namespace) -> int:
         fit_calibration,
     )
 
-    size = _size(args.screen, "--screen") if args.screen else (1920, 1080)
+    size = parse_size(args.screen, "--screen") if args.screen else (1920, 1080)
     method = args.method or DEFAULT_METHOD
     if method not in METHODS:
         raise CalibrationError(f"--method {method!r}: choose from {', '.join(METHODS)}")

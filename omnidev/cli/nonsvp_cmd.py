@@ -14,25 +14,9 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from omnidev.cli.options import parse_size
 from omnidev.errors import OmnidevError
-
-
-def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise OmnidevError(f"{what} {text!r}: expected {n} numbers separated by commas") from None
-    if len(values) != n:
-        raise OmnidevError(f"{what} {text!r}: expected {n} numbers, got {len(values)}")
-    return values
-
-
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise OmnidevError(f"--size {text!r} is not WxH in pixels (e.g. 640x480)") from None
-    return w, h
+from omnidev.landmarks import parse_floats
 
 
 def register(sub: Any) -> None:
@@ -112,9 +96,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
         solvepnp_pose,
     )
 
-    a, b, m = _floats(args.mirror, 3, "--mirror")
-    f, sw, sh = _floats(args.lens, 3, "--lens")
-    size = _size(args.size)
+    a, b, m = parse_floats(args.mirror, 3, "--mirror")
+    f, sw, sh = parse_floats(args.lens, 3, "--lens")
+    size = parse_size(args.size)
     mirror = Mirror.from_rim(a, b, m)
     lens = Lens(f, (sw, sh), size)
     indices = None

@@ -31,3 +31,14 @@ def typed_value(text: str) -> Any:
 def sink_options(items: list[str]) -> dict[str, Any]:
     """Typed sink options from repeated ``--sink-option KEY=VALUE``."""
     return {k: typed_value(v) for k, v in key_values(items, "--sink-option").items()}
+
+
+def parse_size(text: str, what: str = "--size", minimum: int = 1) -> tuple[int, int]:
+    """``"640x480"`` -> ``(640, 480)`` (pixels); an error names ``what`` and the minimum."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise OmnidevError(f"{what} {text!r} is not WxH in pixels (e.g. 640x480)") from None
+    if w < minimum or h < minimum:
+        raise OmnidevError(f"{what} {text!r}: at least {minimum}x{minimum}")
+    return w, h

@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from omnidev.cli.options import parse_size
+
 
 def register(sub: Any) -> None:
     from omnidev.sim.monitor import TRAJECTORIES, VARIANTS
@@ -75,18 +77,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _size(text: str) -> tuple[int, int]:
-    from omnidev.errors import OmnidevError
-
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise OmnidevError(f"--size {text!r} is not WxH") from None
-    if w < 64 or h < 64:
-        raise OmnidevError(f"--size {text!r}: at least 64x64")
-    return w, h
-
-
 def run_mouse(args: argparse.Namespace) -> int:
     from omnidev.errors import OmnidevError
     from omnidev.sim.monitor import make_mouse_fixture
@@ -96,7 +86,7 @@ def run_mouse(args: argparse.Namespace) -> int:
     make_mouse_fixture(
         args.outdir,
         trajectory=args.trajectory,
-        size=_size(args.size),
+        size=parse_size(args.size, minimum=64),
         frames=args.frames,
         fps=args.fps,
         seed=args.seed,
@@ -111,12 +101,9 @@ def run_blob(args: argparse.Namespace) -> int:
     from omnidev.errors import OmnidevError
     from omnidev.sim.blob import make_blob_fixture
 
-    try:
-        w, h = (int(v) for v in args.size.lower().split("x"))
-    except ValueError:
-        raise OmnidevError(f"--size {args.size!r} is not WxH") from None
-    if w < 64 or h < 64 or args.frames < 8 or args.fps <= 0:
-        raise OmnidevError("--size must be at least 64x64, --frames >= 8 and --fps > 0")
+    w, h = parse_size(args.size, minimum=64)
+    if args.frames < 8 or args.fps <= 0:
+        raise OmnidevError("--frames must be >= 8 and --fps > 0")
     make_blob_fixture(
         args.outdir,
         frames=args.frames,

@@ -11,6 +11,9 @@ import shlex
 from pathlib import Path
 from typing import Any
 
+from omnidev.cli.options import parse_size
+from omnidev.landmarks import parse_floats
+
 
 def register_nonsvp(ssub: Any) -> None:
     """Add ``nonsvp`` to the subparsers of ``omnidev sim``."""
@@ -56,28 +59,6 @@ def register_nonsvp(ssub: Any) -> None:
     s.set_defaults(func=run_nonsvp)
 
 
-def _size(text: str, what: str) -> tuple[int, int]:
-    from omnidev.errors import OmnidevError
-
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise OmnidevError(f"{what} {text!r} is not WxH") from None
-    if w < 32 or h < 32:
-        raise OmnidevError(f"{what} {text!r}: at least 32x32")
-    return w, h
-
-
-def _three(text: str, what: str) -> tuple[float, float, float]:
-    from omnidev.errors import OmnidevError
-
-    try:
-        a, b, c = (float(v) for v in text.split(","))
-    except ValueError:
-        raise OmnidevError(f"{what} {text!r} is not three comma-separated numbers") from None
-    return a, b, c
-
-
 def run_nonsvp(args: argparse.Namespace) -> int:
     import dataclasses
 
@@ -87,14 +68,15 @@ def run_nonsvp(args: argparse.Namespace) -> int:
 
     if not 1 <= args.supersample <= 8:
         raise OmnidevError(f"--supersample {args.supersample}: from 1 to 8")
-    size = _size(args.size, "--size")
-    view_size = _size(args.view_size, "--view-size")
+    size = parse_size(args.size, "--size", 32)
+    view_size = parse_size(args.view_size, "--view-size", 32)
     cam = preset_camera(args.pose, size)
     pose = cam.pose
     if args.T:
-        pose = dataclasses.replace(pose, T=_three(args.T, "--T"))
+        tx, ty, tz = parse_floats(args.T, 3, "--T")
+        pose = dataclasses.replace(pose, T=(tx, ty, tz))
     if args.angles:
-        p, y, t = _three(args.angles, "--angles")
+        p, y, t = parse_floats(args.angles, 3, "--angles")
         pose = dataclasses.replace(pose, pitch=p, yaw=y, tilt=t)
     cam = NonSvpCamera(cam.mirror, cam.lens, pose)
     cmd = [

@@ -10,6 +10,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from omnidev.cli.options import parse_size
+
 
 def register_screen(ssub: Any) -> None:
     """Add ``screen`` to the subparsers of ``omnidev sim``."""
@@ -34,18 +36,6 @@ def register_screen(ssub: Any) -> None:
     s.set_defaults(func=run_screen)
 
 
-def _size(text: str) -> tuple[int, int]:
-    from omnidev.errors import OmnidevError
-
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise OmnidevError(f"--size {text!r} is not WxH") from None
-    if w < 64 or h < 64:
-        raise OmnidevError(f"--size {text!r}: at least 64x64")
-    return w, h
-
-
 def run_screen(args: argparse.Namespace) -> int:
     from omnidev.errors import OmnidevError
     from omnidev.sim.screen import make_screen_fixture
@@ -58,7 +48,7 @@ def run_screen(args: argparse.Namespace) -> int:
         raise OmnidevError(f"--n {args.n}: from 2 to 40 dots")
     make_screen_fixture(
         args.outdir,
-        size=_size(args.size),
+        size=parse_size(args.size, minimum=64),
         k1=args.k1,
         n=args.n,
         frames=args.frames,

@@ -49,12 +49,11 @@ class NonSvpCameraModel:
         return int(w), int(h)
 
     def default_elevation_deg(self) -> tuple[float, float] | None:
-        """The elevation band (deg) the mirror shows: from 60 degrees below the
-        horizon up to what the rim reflects (about +29 for DISSERTATION_CAMERA)."""
+        """The elevation band (deg) a panorama shows by default: from 60 degrees below
+        the horizon up to the rim's elevation seen from O_m (an approximation of what
+        the mirror reflects)."""
         m = self.camera.mirror
-        # direction reflected at the rim towards the lens of the aligned camera
-        r, z = m.m, m.b + m.h - m.c
-        rho = float(np.degrees(np.arctan2(z - 0.0, r)))  # the rim seen from O_m
+        rho = float(np.degrees(np.arctan2(m.b + m.h - m.c, m.m)))  # the rim seen from O_m
         return (-60.0, max(-30.0, min(60.0, rho)))
 
     def project(self, points: FloatArray, *, finite: bool) -> tuple[FloatArray, BoolArray]:
