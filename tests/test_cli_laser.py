@@ -46,9 +46,16 @@ def run_chain(tmp: Path, name: str, colour: str) -> tuple[np.ndarray, int, int]:
     return err, len(spots), len(frames) - len(spots)
 
 
+@pytest.fixture(scope="module")
+def chains(tmp_path_factory):
+    """The chain run once per fixture: name -> (errors px, spot frames, empty frames)."""
+    tmp = tmp_path_factory.mktemp("laser")
+    return {name: run_chain(tmp, name, colour) for name, colour in FIXTURES}
+
+
 @pytest.mark.parametrize("name,colour", FIXTURES)
-def test_laser_cli_on_fixture_into_record(tmp_path, name, colour):
-    err, spots, empty = run_chain(tmp_path, name, colour)
+def test_laser_cli_on_fixture_into_record(chains, name, colour):
+    err, spots, empty = chains[name]
     within = float(np.mean(err <= 1.5))
     print(
         f"\nomnidev laser on {name}: {len(err)} positions for {spots} spot frames, no position "
@@ -60,9 +67,8 @@ def test_laser_cli_on_fixture_into_record(tmp_path, name, colour):
     assert within >= 0.95
 
 
-def test_laser_over_the_fixture_videos_together(tmp_path):
-    errs = [run_chain(tmp_path, name, colour)[0] for name, colour in FIXTURES]
-    err = np.concatenate(errs)
+def test_laser_over_the_fixture_videos_together(chains):
+    err = np.concatenate([chains[name][0] for name, _ in FIXTURES])
     ok = int(np.sum(err <= 1.5))
     print(f"\nomnidev laser over the fixture videos: {ok}/{len(err)} within 1.5 px")
     assert ok / len(err) >= 0.99
