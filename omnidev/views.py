@@ -205,6 +205,22 @@ class PlaneView:
         return pts
 
 
+def view_rotation(pan_deg: float, tilt_deg: float, roll_deg: float) -> FloatArray:
+    """3x3 matrix whose columns are a view's right, down, forward axes in the camera frame.
+
+    Forward points at azimuth ``pan_deg`` and elevation ``tilt_deg``; right is
+    horizontal (clockwise of forward seen from above) before the roll; a
+    positive ``roll_deg`` turns the image clockwise as seen by the viewer.
+    """
+    p, t, r = (math.radians(v) for v in (pan_deg, tilt_deg, roll_deg))
+    fwd = np.array([math.cos(t) * math.cos(p), math.cos(t) * math.sin(p), math.sin(t)])
+    right = np.array([math.sin(p), -math.cos(p), 0.0])
+    down = np.cross(fwd, right)
+    right_r = math.cos(r) * right - math.sin(r) * down
+    down_r = math.sin(r) * right + math.cos(r) * down
+    return np.stack([right_r, down_r, fwd], axis=1)
+
+
 @dataclass(frozen=True)
 class Perspective:
     """A virtual pinhole camera at the viewpoint.
@@ -241,13 +257,7 @@ class Perspective:
 
     def rotation(self) -> FloatArray:
         """3x3 matrix whose columns are the view's right, down, forward axes in the camera frame."""
-        p, t, r = (math.radians(v) for v in (self.pan_deg, self.tilt_deg, self.roll_deg))
-        fwd = np.array([math.cos(t) * math.cos(p), math.cos(t) * math.sin(p), math.sin(t)])
-        right = np.array([math.sin(p), -math.cos(p), 0.0])
-        down = np.cross(fwd, right)
-        right_r = math.cos(r) * right - math.sin(r) * down
-        down_r = math.sin(r) * right + math.cos(r) * down
-        return np.stack([right_r, down_r, fwd], axis=1)
+        return view_rotation(self.pan_deg, self.tilt_deg, self.roll_deg)
 
     def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
         f = self.focal_px
@@ -256,6 +266,74 @@ class Perspective:
         xx, yy = np.meshgrid(x, y)
         rays = np.stack([xx, yy, np.ones_like(xx)], axis=-1) @ self.rotation().T
         out: FloatArray = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+        return out
+
+
+@dataclass(frozen=True)
+class Equirectangular:
+    """Longitude/latitude grid (equirectangular) around a chosen direction.
+
+    Columns sample longitude linearly from ``lon_deg[0]`` (left edge) to
+    ``lon_deg[1]`` (right edge); rows sample latitude linearly from
+    ``lat_deg[1]`` (top edge) down to ``lat_deg[0]``. Longitude and latitude are
+    taken in the frame of :func:`view_rotation` (pan/tilt/roll as in
+    :class:`Perspective`): (lon, lat) shows the unit direction
+
+        cos(lat) sin(lon) * right - sin(lat) * down + cos(lat) cos(lon) * forward
+
+    so (0, 0) looks along forward, longitude grows to the right and latitude
+    upwards. The default is the full sphere around +x with the poles straight
+    up and down; with pan = tilt = roll = 0 it equals a 360-degree
+    :class:`Panorama` over elevations -90..90 starting at azimuth 180, but
+    pan/tilt/roll also put the poles elsewhere (e.g. ``tilt_deg=90`` centres
+    the grid on the zenith, as suits a fisheye looking up).
+
+    Args:
+        width, height: output size in pixels.
+        lon_deg: (left, right) longitudes in degrees, span in (0, 360].
+        lat_deg: (bottom, top) latitudes in degrees, -90 <= bottom < top <= 90.
+        pan_deg, tilt_deg, roll_deg: the centre direction and roll, degrees.
+    """
+
+    width: int
+    height: int
+    lon_deg: tuple[float, float] = (-180.0, 180.0)
+    lat_deg: tuple[float, float] = (-90.0, 90.0)
+    pan_deg: float = 0.0
+    tilt_deg: float = 0.0
+    roll_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_size(self.width, self.height)
+        lo, hi = self.lon_deg
+        if not 0 < hi - lo <= 360:
+            raise ValueError(f"Equirectangular lon_deg span must be in (0, 360], got {lo}:{hi}")
+        bottom, top = self.lat_deg
+        if not -90 <= bottom < top <= 90:
+            raise ValueError(
+                "Equirectangular lat_deg must satisfy -90 <= bottom < top <= 90, "
+                f"got {bottom}:{top}"
+            )
+
+    @property
+    def finite(self) -> bool:
+        return False
+
+    def rotation(self) -> FloatArray:
+        """3x3 matrix whose columns are the grid's right, down, forward axes in the camera frame."""
+        return view_rotation(self.pan_deg, self.tilt_deg, self.roll_deg)
+
+    def angles(self) -> tuple[FloatArray, FloatArray]:
+        """Longitude per column (W,) and latitude per row (H,), radians."""
+        lon = np.radians(_centers(self.width, self.lon_deg[0], self.lon_deg[1]))
+        lat = np.radians(_centers(self.height, self.lat_deg[1], self.lat_deg[0]))
+        return lon, lat
+
+    def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
+        lon, lat = self.angles()
+        lo, la = np.meshgrid(lon, lat)
+        local = np.stack([np.cos(la) * np.sin(lo), -np.sin(la), np.cos(la) * np.cos(lo)], axis=-1)
+        out: FloatArray = local @ self.rotation().T
         return out
 
 

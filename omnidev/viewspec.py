@@ -7,11 +7,15 @@
 | `plane`       | d=DIST, w=WIDTH, z=BOTTOM:TOP (required), az=DEG                            |
 | `perspective` | fov=DEG (default 90), pan=DEG, tilt=DEG, roll=DEG                            |
 | `top`         | x=EXTENT, y=EXTENT, z=HEIGHT (required), cx=X, cy=Y                          |
+| `equirect`    | lon=LEFT:RIGHT (default -180:180), lat=BOTTOM:TOP (default -90:90),         |
+|               | pan=DEG, tilt=DEG, roll=DEG (the centre direction, as for perspective)       |
 
 >>> parse_view("panorama:1024x256,elev=-60:10").elevation_deg
 (-60.0, 10.0)
 >>> parse_view("perspective:640x480,fov=70,pan=90").pan_deg
 90.0
+>>> parse_view("equirect:1024x512,lon=-100:100,lat=-90:90").lon_deg
+(-100.0, 100.0)
 """
 
 from __future__ import annotations
@@ -19,7 +23,15 @@ from __future__ import annotations
 import math
 
 from omnidev.errors import OmnidevError
-from omnidev.views import CylinderPanorama, Panorama, Perspective, PlaneView, TopView, View
+from omnidev.views import (
+    CylinderPanorama,
+    Equirectangular,
+    Panorama,
+    Perspective,
+    PlaneView,
+    TopView,
+    View,
+)
 
 _KEYS = {
     "panorama": {"elev", "start", "span", "ccw"},
@@ -27,6 +39,7 @@ _KEYS = {
     "plane": {"d", "w", "z", "az"},
     "perspective": {"fov", "pan", "tilt", "roll"},
     "top": {"x", "y", "z", "cx", "cy"},
+    "equirect": {"lon", "lat", "pan", "tilt", "roll"},
 }
 _REQUIRED = {"cylinder": {"d", "z"}, "plane": {"d", "w", "z"}, "top": {"x", "y", "z"}}
 
@@ -105,6 +118,12 @@ def parse_view(spec: str) -> View:
         if kind == "perspective":
             return Perspective(
                 w, h, num("fov", 90.0), num("pan", 0.0), num("tilt", 0.0), num("roll", 0.0)
+            )
+        if kind == "equirect":
+            lon = _pair(spec, "lon", kv["lon"]) if "lon" in kv else (-180.0, 180.0)
+            lat = _pair(spec, "lat", kv["lat"]) if "lat" in kv else (-90.0, 90.0)
+            return Equirectangular(
+                w, h, lon, lat, num("pan", 0.0), num("tilt", 0.0), num("roll", 0.0)
             )
         return TopView(w, h, num("x", 0), num("y", 0), num("z", 0), num("cx", 0.0), num("cy", 0.0))
     except ValueError as exc:
