@@ -1,0 +1,355 @@
+"""Import/export of other tools' calibrations (omnidev.fisheye.formats, .miniyaml).
+
+Each format round-trips: a model written in the format is read back with identical
+parameters, and then through omnidev's own file and OpenCV's K/D/xi and back.
+OpenCV's own functions check that K, D and xi mean what cv2.fisheye / cv2.omnidir
+users expect.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+from omnidev.errors import CalibrationError
+from omnidev.fisheye import miniyaml
+from omnidev.fisheye.camera import MOUNTS, FisheyeCamera
+from omnidev.fisheye.camfile import write_camera_file
+from omnidev.fisheye.formats import (
+    basalt_text,
+    detect_format,
+    import_calibration,
+    kalibr_text,
+    ocamcalib_text,
+    opencv_nodes,
+    parse_basalt,
+    parse_kalibr,
+    parse_ocamcalib,
+    write_opencv,
+)
+from omnidev.fisheye.models import (
+    EUCM,
+    DoubleSphere,
+    IdealFisheye,
+    KannalaBrandt,
+    LensModel,
+    Scaramuzza,
+    Unified,
+)
+
+KB4 = KannalaBrandt(fx=190.97, fy=190.93, cx=254.93, cy=256.89, k=(0.0035, 7e-4, -2.05e-3, 2e-4))
+MEI = Unified(
+    fx=366.07, fy=366.16, cx=643.71, cy=521.31, xi=1.443, skew=-1.73,
+    k1=0.1098, k2=0.2166, p1=8.25e-4, p2=-2.58e-4,
+)  # fmt: skip
+DS = DoubleSphere(fx=158.28, fy=158.27, cx=254.96, cy=256.88, xi=-0.1721, alpha=0.5931)
+EU = EUCM(fx=191.14, fy=191.13, cx=254.95, cy=256.88, alpha=0.6291, beta=1.0418)
+OCAM = Scaramuzza(
+    ss=(-337.4374, 0.0, 0.001232446, -1.355883e-06, 2.914654e-09),
+    xc=378.875612, yc=541.097113, c=0.998971, d=-0.000104, e=-0.000312,
+    invpol=(509.74394, 292.31636, -13.734732, 41.371323, 24.066967, -7.800231),
+)  # fmt: skip
+SIZE = (512, 512)
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def _omnidev_round_trip(tmp: Path, lens: Any, size: tuple[int, int]) -> None:
+    """Through omnidev's own ``fisheye`` file (mount down) and back: identical."""
+    path = tmp / "omnidev.yml"
+    write_camera_file(path, FisheyeCamera(lens, size, MOUNTS["down"], 95.0), force=True)
+    back = import_calibration(path)
+    assert back.lens == lens and back.image_size == size
+    assert back.max_angle_deg == 95.0 and back.mount is not None
+    assert np.array_equal(back.mount, MOUNTS["down"])
+
+
+# ---------------------------------------------------------------- miniyaml
+
+
+def test_miniyaml_reads_the_kalibr_block_style_cv2_filestorage_rejects(tmp_path: Path) -> None:
+    text = (
+        "cam0:\n  T_cam_imu:\n  - [1.0, 0.0, 0.0, 0.05]\n  - [0, 1, 0, -0.1]\n"
+        "  camera_model: pinhole   # comment\n  intrinsics: [190.9, 190.8,\n    254.9, 256.8]\n"
+        "  rostopic: '/cam0/image # raw'\n  flag: true\n  none: ~\n"
+        'cam1: {fx: 1.5e2, k: [1, -2], name: "a b"}\n'
+    )
+    assert miniyaml.loads(text) == {
+        "cam0": {
+            "T_cam_imu": [[1.0, 0.0, 0.0, 0.05], [0, 1, 0, -0.1]],
+            "camera_model": "pinhole",
+            "intrinsics": [190.9, 190.8, 254.9, 256.8],
+            "rostopic": "/cam0/image # raw",
+            "flag": True,
+            "none": None,
+        },
+        "cam1": {"fx": 150.0, "k": [1, -2], "name": "a b"},
+    }
+    path = _write(tmp_path / "chain.yaml", "%YAML:1.0\n" + text)
+    with pytest.raises((cv2.error, SystemError)):  # why omnidev reads Kalibr YAML itself
+        cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+
+
+@pytest.mark.parametrize(
+    ("text", "where"),
+    [
+        ("a: [1, 2\nb: 3\n", "line 1: unclosed"),
+        ("a: 1\na: 2\n", "line 2: key 'a' given twice"),
+        ("a: &x 1\n", "line 1: anchors"),
+        ("a:\n  b: 1\n   c: 2\n", "line 3"),
+    ],
+)
+def test_miniyaml_errors_name_the_line(text: str, where: str) -> None:
+    with pytest.raises(miniyaml.YamlError, match=where):
+        miniyaml.loads(text)
+
+
+# ---------------------------------------------------------------- OCamCalib
+
+
+def test_ocamcalib_round_trip(tmp_path: Path) -> None:
+    path = _write(tmp_path / "calib_results.txt", ocamcalib_text(OCAM, (1032, 778)))
+    assert detect_format(path) == "ocamcalib"
+    got = import_calibration(path)
+    assert got.lens == OCAM and got.image_size == (1032, 778) and got.format == "ocamcalib"
+    _omnidev_round_trip(tmp_path, OCAM, (1032, 778))
+    no_inv = dataclasses.replace(OCAM, invpol=None)
+    assert parse_ocamcalib(ocamcalib_text(no_inv, (1032, 778)), "x").lens == no_inv
+
+
+def test_ocamcalib_conventions_row_column_and_frame() -> None:
+    """Centre (xc, yc) is (row, column); the optical axis is -z of OCamCalib's frame."""
+    text = "# c\n3 -100 0 0.001\n0\n200.0 300.0\n1 0 0\n480 640\n"
+    lens = parse_ocamcalib(text, "x").lens
+    uv, ok = lens.project(np.array([0.0, 0.0, 1.0]))
+    assert ok and np.allclose(uv, [300.0, 200.0])  # u = column yc, v = row xc
+    # a ray to the right (+x optical) lands right of the centre, one down lands below it
+    uv, _ = lens.project(np.array([[0.1, 0.0, 1.0], [0.0, 0.1, 1.0]]))
+    assert uv[0, 0] > 300 and abs(uv[0, 1] - 200) < 1e-9
+    assert uv[1, 1] > 200 and abs(uv[1, 0] - 300) < 1e-9
+
+
+# ---------------------------------------------------------------- Kalibr
+
+
+@pytest.mark.parametrize("lens", [KB4, dataclasses.replace(MEI, skew=0.0), DS, EU])
+def test_kalibr_round_trip(tmp_path: Path, lens: Any) -> None:
+    other = dataclasses.replace(KB4, fx=100.0)
+    text = kalibr_text(other, (640, 480), "cam0") + kalibr_text(lens, SIZE, "cam1")
+    path = _write(tmp_path / "camchain.yaml", text)
+    assert detect_format(path) == "kalibr"
+    for camera in ("cam1", "1"):
+        got = import_calibration(path, camera=camera)
+        assert got.lens == lens and got.image_size == SIZE
+        assert got.camera == "cam1" and got.cameras == ("cam0", "cam1")
+    assert import_calibration(path).lens == other  # default: the first camera
+    _omnidev_round_trip(tmp_path, lens, SIZE)
+    if isinstance(lens, KannalaBrandt | Unified):
+        out = tmp_path / "opencv.yml"
+        write_opencv(out, lens, SIZE)
+        back = import_calibration(out)
+        assert back.lens == lens and back.image_size == SIZE
+
+
+def test_kalibr_pinhole_radtan_is_the_unified_model_with_xi_zero() -> None:
+    doc = miniyaml.loads(
+        "cam0:\n  camera_model: pinhole\n  intrinsics: [400.0, 401.0, 320.0, 240.0]\n"
+        "  distortion_model: radtan\n  distortion_coeffs: [-0.2, 0.05, 0.001, -0.002]\n"
+        "  resolution: [640, 480]\n"
+    )
+    lens = parse_kalibr(doc, "x").lens
+    assert isinstance(lens, Unified) and lens.xi == 0.0
+    pts = np.random.default_rng(1).uniform([-0.5, -0.4, 1.0], [0.5, 0.4, 2.0], (50, 3))
+    K = np.array([[400.0, 0, 320], [0, 401, 240], [0, 0, 1]])
+    ref, _ = cv2.projectPoints(
+        pts, np.zeros(3), np.zeros(3), K, np.array([-0.2, 0.05, 0.001, -0.002])
+    )
+    uv, ok = lens.project(pts)
+    assert ok.all() and np.abs(uv - ref.reshape(-1, 2)).max() < 1e-9
+
+
+def test_tumvi_style_named_yaml() -> None:
+    doc = miniyaml.loads(
+        "width: 512\nheight: 512\ncam0: {fx: 190.9, fy: 190.8, cx: 254.9, cy: 256.8,\n"
+        "       k1: 0.0034, k2: 0.0007, k3: -0.002, k4: 0.0002}\n"
+    )
+    got = parse_kalibr(doc, "x")
+    assert got.lens == KannalaBrandt(190.9, 190.8, 254.9, 256.8, (0.0034, 0.0007, -0.002, 0.0002))
+    assert got.image_size == (512, 512)
+
+
+# ---------------------------------------------------------------- basalt and others
+
+
+def test_basalt_round_trip(tmp_path: Path) -> None:
+    lenses: list[LensModel] = [KB4, DS, EU]
+    sizes = [SIZE, (640, 480), (1280, 1024)]
+    path = _write(tmp_path / "calibration.json", basalt_text(lenses, sizes))
+    assert detect_format(path) == "basalt"
+    for i, (lens, size) in enumerate(zip(lenses, sizes, strict=True)):
+        got = import_calibration(path, camera=str(i))
+        assert got.lens == lens and got.image_size == size and got.cameras == ("0", "1", "2")
+        _omnidev_round_trip(tmp_path, lens, size)
+    assert import_calibration(path, camera="cam2").lens == EU
+
+
+def test_basalt_ucm_is_the_unified_model() -> None:
+    """basalt's UCM: u = fx x / (alpha d + (1 - alpha) z) + cx."""
+    fx, fy, cx, cy, alpha = 300.0, 301.0, 320.0, 240.0, 0.6
+    doc = {"value0": {"intrinsics": [{"camera_type": "ucm", "intrinsics": dict(
+        fx=fx, fy=fy, cx=cx, cy=cy, alpha=alpha)}]}}  # fmt: skip
+    lens = parse_basalt(doc, "x").lens
+    assert isinstance(lens, Unified)
+    pts = np.random.default_rng(2).normal(size=(100, 3)) + np.array([0, 0, 1.0])
+    d = np.linalg.norm(pts, axis=1)
+    m = alpha * d + (1 - alpha) * pts[:, 2]
+    ref = np.stack([fx * pts[:, 0] / m + cx, fy * pts[:, 1] / m + cy], 1)
+    uv, ok = lens.project(pts)
+    assert np.abs(uv[ok] - ref[ok]).max() < 1e-9 and ok.sum() > 80
+
+
+def test_camera_intrinsic_model_json(tmp_path: Path) -> None:
+    params = {"fx": EU.fx, "fy": EU.fy, "cx": EU.cx, "cy": EU.cy, "alpha": EU.alpha}
+    doc = {"EUCM": {**params, "beta": EU.beta, "width": 512, "height": 512}}
+    path = _write(tmp_path / "eucm0.json", json.dumps(doc))
+    assert detect_format(path) == "cim"
+    assert import_calibration(path).lens == EU
+
+
+# ---------------------------------------------------------------- OpenCV
+
+
+@pytest.mark.parametrize("suffix", [".yml", ".xml", ".json", ".yml.gz"])
+@pytest.mark.parametrize("lens", [KB4, dataclasses.replace(KB4, skew=0.4), MEI])
+def test_opencv_round_trip(tmp_path: Path, lens: Any, suffix: str) -> None:
+    path = tmp_path / ("cam" + suffix)
+    write_opencv(path, lens, SIZE)
+    assert detect_format(path) == "opencv"
+    got = import_calibration(path)
+    assert got.lens == lens and got.image_size == SIZE and got.format == "opencv"
+    _omnidev_round_trip(tmp_path, lens, SIZE)
+
+
+def test_opencv_export_means_what_cv2_fisheye_and_omnidir_read() -> None:
+    pts = np.random.default_rng(3).uniform([-1, -1, 0.2], [1, 1, 1.0], (200, 1, 3))
+    kb = dataclasses.replace(KB4, skew=0.4)
+    n = opencv_nodes(kb, SIZE)
+    ref, _ = cv2.fisheye.projectPoints(
+        pts, np.zeros(3), np.zeros(3), n["K"], n["D"], alpha=0.4 / kb.fx
+    )
+    uv, ok = kb.project(pts.reshape(-1, 3))
+    assert ok.all() and np.abs(uv - ref.reshape(-1, 2)).max() < 1e-9
+    n = opencv_nodes(MEI, SIZE)
+    ref, _ = cv2.omnidir.projectPoints(
+        pts, np.zeros(3), np.zeros(3), n["K"], float(n["xi"][0, 0]), n["D"]
+    )
+    uv, ok = MEI.project(pts.reshape(-1, 3))
+    assert ok.all() and np.abs(uv - ref.reshape(-1, 2)).max() < 1e-9
+
+
+def test_opencv_reads_plain_cv2_files_and_ros_camera_info(tmp_path: Path) -> None:
+    path = tmp_path / "fisheye.yml"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    K = np.array([[KB4.fx, 0, KB4.cx], [0, KB4.fy, KB4.cy], [0, 0, 1]])
+    fs.write("camera_matrix", K)
+    fs.write("distortion_coefficients", np.array(KB4.k).reshape(1, 4))
+    fs.release()
+    got = import_calibration(path)
+    assert got.lens == KB4 and got.image_size is None
+    ros = tmp_path / "camera_info.yaml"
+    ros.write_text(
+        "image_width: 512\nimage_height: 512\ncamera_name: fish\ncamera_matrix:\n  rows: 3\n"
+        f"  cols: 3\n  data: [{KB4.fx!r}, 0, {KB4.cx!r}, 0, {KB4.fy!r}, {KB4.cy!r}, 0, 0, 1]\n"
+        "distortion_model: equidistant\ndistortion_coefficients:\n  rows: 1\n  cols: 4\n"
+        f"  data: [{', '.join(repr(k) for k in KB4.k)}]\n"
+    )
+    assert detect_format(ros) == "opencv"
+    got = import_calibration(ros)
+    assert got.lens == KB4 and got.image_size == SIZE
+
+
+def test_opencv_export_of_models_opencv_lacks() -> None:
+    eq = IdealFisheye("equidistant", 300.0, 320.0, 240.0)
+    assert opencv_nodes(eq, None)["D"].ravel().tolist() == [0.0] * 4
+    with pytest.raises(CalibrationError, match="OpenCV has no 'ds' lens"):
+        opencv_nodes(DS, SIZE)
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def _error(path: Path, **kw: Any) -> str:
+    with pytest.raises(CalibrationError) as info:
+        import_calibration(path, **kw)
+    msg = str(info.value)
+    assert "\n" not in msg and str(path) in msg
+    return msg
+
+
+def test_unreadable_files(tmp_path: Path) -> None:
+    assert "not found" in _error(tmp_path / "missing.txt")
+    binary = tmp_path / "calib.yaml"
+    binary.write_bytes(b"\xff\xfe\x00\x81binary")
+    assert "cannot read" in _error(binary)
+    bad = _write(tmp_path / "calib.json", "{not json")
+    assert "not JSON" in _error(bad, fmt="basalt")
+    yml = _write(tmp_path / "chain.yaml", "cam0:\n  intrinsics: [1, 2\n")
+    assert "line 2: unclosed" in _error(yml, fmt="kalibr")
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "fmt", "key"),
+    [
+        ("c.txt", "#\n3 -100 0 0.001\n0\n200 300\n", "ocamcalib", "affine c d e"),
+        ("c.txt", "#\n3 -100 0\n0\n200 300\n1 0 0\n480 640\n", "ocamcalib", "ss (polynomial)"),
+        ("k.yaml", "cam0:\n  camera_model: omni\n  resolution: [1, 1]\n", "kalibr",
+         "cam0.intrinsics"),
+        ("k.yaml", "cam0:\n  camera_model: ds\n  intrinsics: [1, 2]\n", "kalibr",
+         "cam0.intrinsics"),
+        ("k.yaml", "cam0: {fx: 1, fy: 1, cx: 1, cy: 1, k1: 0}\n", "kalibr", "cam0.k2"),
+        ("b.json", '{"value0": {"intrinsics": [{"camera_type": "ds", "intrinsics": '
+         '{"fx": 1, "fy": 1, "cx": 1, "cy": 1, "xi": 0}}]}}', "basalt", "intrinsics.alpha"),
+        ("b.json", '{"value0": {"resolution": []}}', "basalt", "value0.intrinsics"),
+        ("o.yml", "%YAML:1.0\nD: [0, 0, 0, 0]\n", "opencv", "'K'"),
+        ("o.yml", "%YAML:1.0\nK: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+         "  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n", "opencv", "'D'"),
+    ],
+)  # fmt: skip
+def test_partial_files_name_the_key(
+    tmp_path: Path, name: str, text: str, fmt: str, key: str
+) -> None:
+    assert key in _error(_write(tmp_path / name, text), fmt=fmt)
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "what"),
+    [
+        ("k.yaml", "cam0:\n  camera_model: fov\n  intrinsics: [1]\n", "camera_model 'fov'"),
+        ("k.yaml", "cam0:\n  camera_model: pinhole\n  intrinsics: [1, 1, 1, 1]\n"
+         "  distortion_model: fov\n  distortion_coeffs: [0.9]\n", "distortion_model 'fov'"),
+        ("b.json", '{"value0": {"intrinsics": [{"camera_type": "bal", "intrinsics": {}}]}}',
+         "camera_type 'bal'"),
+        ("f.json", '{"FovCamera": {"fx": 1}}', "model 'FovCamera'"),
+        ("o.yml", "%YAML:1.0\nK: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n", "not an upper-triangular"),
+        ("o.yml", "%YAML:1.0\nkind: pano-table\n", "kind 'pano-table'"),
+        ("c.txt", "#\n3 100 0 0.001\n0\n200 300\n1 0 0\n480 640\n", "ss[0] < 0"),
+    ],
+)  # fmt: skip
+def test_unknown_models_name_the_key(tmp_path: Path, name: str, text: str, what: str) -> None:
+    assert what in _error(_write(tmp_path / name, text))
+
+
+def test_camera_choice_errors(tmp_path: Path) -> None:
+    path = _write(tmp_path / "camchain.yaml", kalibr_text(KB4, SIZE, "cam0"))
+    assert "no camera 'cam3' (the file has cam0)" in _error(path, camera="cam3")
+    ocam = _write(tmp_path / "calib_results.txt", ocamcalib_text(OCAM, SIZE))
+    assert "--camera applies to Kalibr and basalt" in _error(ocam, camera="1")
