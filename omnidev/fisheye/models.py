@@ -380,7 +380,7 @@ class Unified:
                 break
         ex, ey = self.distort(x, y)
         ok = (np.hypot(ex - xd, ey - yd) <= 1e-11 * (1.0 + np.hypot(xd, yd))) & (
-            np.hypot(x, y) <= self.r_max
+            np.hypot(x, y) <= self.r_max * (1 + 1e-9)
         )
         return x, y, ok
 
@@ -393,7 +393,7 @@ class Unified:
         valid = _finite_rows(p) & (n > 0) & (zs > -self._w) & (den > 0)
         den = np.where(valid, den, 1.0)
         x, y = xs / den, ys / den
-        valid &= np.hypot(x, y) <= self.r_max
+        valid &= np.hypot(x, y) <= self.r_max * (1 + 1e-9)
         xd, yd = self.distort(x, y)
         return _pack_uv(self.fx * xd + self.skew * yd + self.cx, self.fy * yd + self.cy, valid)
 
