@@ -353,3 +353,52 @@ def test_camera_choice_errors(tmp_path: Path) -> None:
     assert "no camera 'cam3' (the file has cam0)" in _error(path, camera="cam3")
     ocam = _write(tmp_path / "calib_results.txt", ocamcalib_text(OCAM, SIZE))
     assert "--camera applies to Kalibr and basalt" in _error(ocam, camera="1")
+
+
+KALIBR_CAMCHAIN = """\
+cam0:
+  T_cam_imu:
+  - [-0.9995250378696743, 0.029615343885863205, -0.008522328211654736, 0.04727988224914392]
+  - [0.0075019185074052044, -0.03439736061393144, -0.9993800792498829, -0.047443232143367084]
+  - [-0.02989013031643309, -0.998969345370175, 0.03415885127385616, -0.0681999605066297]
+  - [0.0, 0.0, 0.0, 1.0]
+  cam_overlaps: [1]
+  camera_model: pinhole
+  distortion_coeffs: [0.0034823894022493434, 0.0007150348452162257, -0.0020532361418706202,
+    0.00020293673591811182]
+  distortion_model: equidistant
+  intrinsics: [190.97847715128717, 190.9733070521226, 254.93170605935475, 256.8974428996504]
+  resolution: [512, 512]
+  rostopic: /cam0/image_raw
+  timeshift_cam_imu: 0.0
+cam1:
+  T_cn_cnm1:
+  - [0.999999445773493, 0.000791687752817, 0.000694034010224, 0.101063427414194]
+  - [-0.000823363992158, 0.998899461915674, 0.046895490788700, 0.001946204678584]
+  - [-0.000656143613644, -0.046896036240590, 0.998899560146304, 0.001015350132563]
+  - [0.0, 0.0, 0.0, 1.0]
+  cam_overlaps: [0]
+  camera_model: omni
+  distortion_coeffs: [-0.1, 0.02, 1.0e-4, -2.0e-4]
+  distortion_model: radtan
+  intrinsics: [1.2, 480.0, 481.0, 254.0, 255.0]
+  resolution: [512, 512]
+  rostopic: /cam1/image_raw
+"""
+
+
+def test_a_kalibr_camchain_as_kalibr_writes_it(tmp_path: Path) -> None:
+    """Kalibr's own layout (PyYAML block style, extrinsics, a wrapped flow list)."""
+    path = _write(tmp_path / "camchain-imucam.yaml", KALIBR_CAMCHAIN)
+    assert detect_format(path) == "kalibr"
+    cam0 = import_calibration(path)
+    assert cam0.lens == KannalaBrandt(
+        190.97847715128717, 190.9733070521226, 254.93170605935475, 256.8974428996504,
+        (0.0034823894022493434, 0.0007150348452162257, -0.0020532361418706202,
+         0.00020293673591811182),
+    )  # fmt: skip
+    cam1 = import_calibration(path, camera="cam1")
+    assert cam1.lens == Unified(
+        fx=480.0, fy=481.0, cx=254.0, cy=255.0, xi=1.2, k1=-0.1, k2=0.02, p1=1e-4, p2=-2e-4
+    )
+    assert cam0.image_size == cam1.image_size == (512, 512)

@@ -373,7 +373,13 @@ _BASALT = {
 
 
 def parse_basalt(doc: Any, source: str, camera: str | None = None) -> Imported:
-    """A basalt calibration (dict from JSON) -> the lens of camera ``camera`` (``N``)."""
+    """A basalt calibration (dict from JSON) -> the lens of camera ``camera`` (``N``).
+
+    >>> eucm = {"fx": 191.1, "fy": 191.1, "cx": 254.9, "cy": 256.8, "alpha": 0.63, "beta": 1.04}
+    >>> cams = [{"camera_type": "eucm", "intrinsics": eucm}]
+    >>> parse_basalt({"value0": {"intrinsics": cams}}, "calibration.json").lens
+    EUCM(fx=191.1, fy=191.1, cx=254.9, cy=256.8, alpha=0.63, beta=1.04)
+    """
     root = doc.get("value0", doc) if isinstance(doc, Mapping) else None
     if not isinstance(root, Mapping):
         raise _fail(source, "not a basalt calibration (expected value0.intrinsics)")

@@ -231,7 +231,11 @@ def _block(lines: list[tuple[int, int, str]], i: int, indent: int) -> tuple[Any,
 
 
 def loads(text: str) -> Any:
-    """The value of a YAML document in the subset above (a dict for calibration files)."""
+    r"""The value of a YAML document in the subset above (a dict for calibration files).
+
+    >>> loads("cam0:\n  T_cn_cnm1:\n  - [1, 0]\n  - [0, 1]\n  intrinsics: [190.9, 2e2]  # fu fv\n")
+    {'cam0': {'T_cn_cnm1': [[1, 0], [0, 1]], 'intrinsics': [190.9, 200.0]}}
+    """
     lines = _logical_lines(text)
     if not lines:
         return None
