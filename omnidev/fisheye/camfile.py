@@ -88,7 +88,7 @@ def camera_nodes(camera: FisheyeCamera) -> dict[str, Any]:
     return nodes
 
 
-def write_camera_file(path: Path, camera: FisheyeCamera, *, force: bool = False) -> None:
+def write_camera_file(path: Path | str, camera: FisheyeCamera, *, force: bool = False) -> None:
     """Write ``camera`` as a ``fisheye`` calibration file (atomically; .yml, .xml, .json, .gz)."""
     write_storage(Path(path), KIND, VERSION, camera_nodes(camera), force=force)
 
@@ -122,7 +122,7 @@ def _read_lens(fs: cv2.FileStorage, path: Path) -> LensModel:
     return lens
 
 
-def read_camera_file(path: Path) -> FisheyeCamera:
+def read_camera_file(path: Path | str) -> FisheyeCamera:
     """Read a ``fisheye`` calibration file; errors name the file and the key."""
     path = Path(path)
     with open_storage(path) as fs:
@@ -173,6 +173,6 @@ def apply_options(camera: FisheyeCamera, options: Mapping[str, str]) -> FisheyeC
     return FisheyeCamera(camera.lens, camera.image_size, mount, max_angle)
 
 
-def camera_from_file(path: Path, options: Mapping[str, str]) -> FisheyeCamera:
+def camera_from_file(path: Path | str, options: Mapping[str, str]) -> FisheyeCamera:
     """Load a ``fisheye`` camera and apply the ``--camera-option`` settings."""
     return apply_options(read_camera_file(Path(path)), options)
