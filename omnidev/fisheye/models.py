@@ -171,6 +171,7 @@ def solve_increasing(
     target: FloatArray,
     upper: float,
     *,
+    x0: FloatArray | None = None,
     tol: float = 1e-13,
     max_iter: int = 100,
 ) -> tuple[FloatArray, BoolArray]:
@@ -178,35 +179,46 @@ def solve_increasing(
 
     Newton's method kept inside a shrinking bracket [lo, hi] (a step that would
     leave the bracket is replaced by bisection), so it never diverges and never
-    produces NaN for finite targets. Returns x and a mask: False where the
-    target lies outside [f(0), f(upper)] or the iteration did not converge.
+    produces NaN for finite targets; only the entries not yet converged are
+    iterated. ``x0`` is an optional start (default: linear interpolation between
+    the ends). Returns x and a mask: False where the target lies outside
+    [f(0), f(upper)] or the iteration did not converge.
     """
     target = np.asarray(target, np.float64)
+    shape = target.shape
     f0 = float(f(np.zeros(1))[0])
     f1 = float(f(np.full(1, upper))[0])
-    inside = np.isfinite(target) & (target >= f0) & (target <= f1)
-    t = np.where(inside, target, f0)
+    t_all = target.ravel()
+    inside = np.isfinite(t_all) & (t_all >= f0) & (t_all <= f1)
+    x_all = np.zeros_like(t_all)
+    idx = np.flatnonzero(inside)
+    t = t_all[idx]
+    if x0 is None:
+        x = upper * (t - f0) / (f1 - f0) if f1 > f0 else np.zeros_like(t)
+    else:
+        x = np.broadcast_to(np.asarray(x0, np.float64), shape).ravel()[idx]
+    x = np.clip(np.nan_to_num(x, nan=0.0), 0.0, upper)
     lo = np.zeros_like(t)
     hi = np.full_like(t, upper)
-    # start from linear interpolation between the ends
-    x = np.clip(upper * (t - f0) / (f1 - f0) if f1 > f0 else np.zeros_like(t), 0.0, upper)
-    scale = max(abs(f0), abs(f1), 1.0)
     for _ in range(max_iter):
+        if idx.size == 0:
+            break
         r = f(x) - t
         lo = np.where(r <= 0, x, lo)
         hi = np.where(r >= 0, x, hi)
         d = df(x)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             xn = x - r / d
-        mid = 0.5 * (lo + hi)
-        xn = np.where(np.isfinite(xn) & (xn > lo) & (xn < hi), xn, mid)
+        xn = np.where(np.isfinite(xn) & (xn > lo) & (xn < hi), xn, 0.5 * (lo + hi))
         xn = np.where(r == 0, x, xn)
-        step = np.abs(xn - x)
-        x = xn
-        if np.all(step <= tol * np.maximum(1.0, np.abs(x))):
-            break
-    ok = inside & (np.abs(f(x) - t) <= 1e-10 * scale)
-    return x, ok
+        done = np.abs(xn - x) <= tol * np.maximum(1.0, np.abs(xn))
+        x_all[idx[done]] = xn[done]
+        keep = ~done
+        idx, t, x, lo, hi = idx[keep], t[keep], xn[keep], lo[keep], hi[keep]
+    x_all[idx] = x  # not converged within max_iter: checked below
+    scale = max(abs(f0), abs(f1), 1.0)
+    ok = inside & (np.abs(f(x_all) - t_all) <= 1e-10 * scale)
+    return x_all.reshape(shape), ok.reshape(shape)
 
 
 def _ucm_w(alpha: float) -> float:
@@ -242,11 +254,6 @@ class KannalaBrandt:
     def name(self) -> str:
         return "kb4"
 
-    @property
-    def _coeffs(self) -> tuple[float, ...]:
-        k1, k2, k3, k4 = self.k
-        return (0.0, 1.0, 0.0, k1, 0.0, k2, 0.0, k3, 0.0, k4)
-
     @cached_property
     def max_angle(self) -> float:
         k1, k2, k3, k4 = self.k
@@ -256,7 +263,14 @@ class KannalaBrandt:
 
     def distort(self, theta: FloatArray) -> FloatArray:
         """theta_d(theta), rad -> rad."""
-        return _poly(self._coeffs, theta)
+        k1, k2, k3, k4 = self.k
+        t2 = theta * theta
+        return theta * (1.0 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
+
+    def _ddistort(self, theta: FloatArray) -> FloatArray:
+        k1, k2, k3, k4 = self.k
+        t2 = theta * theta
+        return 1.0 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
 
     def project(self, xyz: ArrayLike) -> tuple[FloatArray, BoolArray]:
         p = _points(xyz)
@@ -271,10 +285,7 @@ class KannalaBrandt:
         yd = (q[..., 1] - self.cy) / self.fy
         xd = (q[..., 0] - self.cx - self.skew * yd) / self.fx
         td = np.hypot(xd, yd)
-        c = self._coeffs
-        theta, ok = solve_increasing(
-            lambda t: _poly(c, t), lambda t: _dpoly(c, t), td, self.max_angle
-        )
+        theta, ok = solve_increasing(self.distort, self._ddistort, td, self.max_angle, x0=td)
         safe = np.where(td > 0, td, 1.0)
         s = np.sin(theta)
         x = np.where(td > 0, s * xd / safe, 0.0)
@@ -566,7 +577,9 @@ class Scaramuzza:
         if self.invpol is not None:
             rho = _poly(self.invpol, alpha - math.pi / 2)
         else:
-            rho, ok = solve_increasing(self.angle, self._dangle, alpha, self.rho_max)
+            # start from the equidistant guess rho = -a0 * angle
+            guess = -self.ss[0] * alpha
+            rho, ok = solve_increasing(self.angle, self._dangle, alpha, self.rho_max, x0=guess)
             valid &= ok
         a, b = rho * sa, rho * ca  # OCamCalib x (rows) = optical y, y (cols) = optical x
         row = self.c * a + self.d * b + self.xc
