@@ -188,6 +188,7 @@ def test_bad_files_give_one_line_errors(tmp_path, capsys) -> None:
         "no-fx.yml": (text.replace("fx: 200.\n", ""), "'fx'"),
         "no-k.yml": (text.split("k: !!opencv-matrix")[0] + "image_width: 640\n", "'k'"),
         "no-width.yml": (text.replace("image_width: 640\n", ""), "'image_width'"),
+        "negative-fx.yml": (text.replace("fx: 200.", "fx: -200."), "parameter fx must be > 0"),
         "model.yml": (text.replace("model: kb4", "model: pinhole"), "'model'"),
         "mount.yml": (text.replace("data: [ 1., 0., 0.,", "data: [ 2., 0., 0.,"), "'mount'"),
         "garbage.yml": ("%YAML 1.2\n---\nkind: [fisheye\n", "not a readable"),

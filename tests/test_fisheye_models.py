@@ -386,5 +386,11 @@ def test_bad_shapes_are_rejected() -> None:
         lens.project(np.zeros((4, 2)))
     with pytest.raises(ValueError, match="shape"):
         lens.unproject(np.zeros((4, 3)))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="ss"):
         Scaramuzza((10.0, 0.0, 0.001), 1.0, 1.0)
+    with pytest.raises(ValueError, match="alpha"):
+        DoubleSphere(100.0, 100.0, 1.0, 1.0, 0.1, 1.5)
+    with pytest.raises(ValueError, match="beta"):
+        EUCM(100.0, 100.0, 1.0, 1.0, 0.5, -1.0)
+    with pytest.raises(ValueError, match="k2"):
+        KannalaBrandt(100.0, 100.0, 1.0, 1.0, (0.0, math.nan, 0.0, 0.0))

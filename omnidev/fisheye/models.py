@@ -221,6 +221,19 @@ def solve_increasing(
     return x_all.reshape(shape), ok.reshape(shape)
 
 
+def _check(name: str, **values: float) -> None:
+    """ValueError naming the first parameter that is not finite or not in its range."""
+    for key, value in values.items():
+        if not math.isfinite(value):
+            raise ValueError(f"{name} parameter {key} is not finite")
+        if key in ("fx", "fy", "f", "aspect", "beta") and not value > 0:
+            raise ValueError(f"{name} parameter {key} must be > 0, not {value}")
+        if key == "alpha" and not 0 <= value <= 1:
+            raise ValueError(f"{name} parameter alpha must be in [0, 1], not {value}")
+        if key == "xi" and name == "mei" and not value >= 0:
+            raise ValueError(f"mei parameter xi must be >= 0, not {value}")
+
+
 def _ucm_w(alpha: float) -> float:
     """w of the unified model's valid set z > -w * |p| (alpha form; Usenko et al. 2018)."""
     return alpha / (1.0 - alpha) if alpha <= 0.5 else (1.0 - alpha) / alpha
@@ -249,6 +262,12 @@ class KannalaBrandt:
     cy: float
     k: tuple[float, float, float, float]
     skew: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check("kb4", fx=self.fx, fy=self.fy, cx=self.cx, cy=self.cy, skew=self.skew)
+        if len(self.k) != 4:
+            raise ValueError(f"kb4 needs 4 coefficients k, not {len(self.k)}")
+        _check("kb4", **{f"k{i + 1}": float(v) for i, v in enumerate(self.k)})
 
     @property
     def name(self) -> str:
@@ -321,6 +340,10 @@ class Unified:
     p1: float = 0.0
     p2: float = 0.0
 
+    def __post_init__(self) -> None:
+        _check("mei", fx=self.fx, fy=self.fy, cx=self.cx, cy=self.cy, xi=self.xi,
+               skew=self.skew, k1=self.k1, k2=self.k2, p1=self.p1, p2=self.p2)  # fmt: skip
+
     @property
     def name(self) -> str:
         return "mei"
@@ -337,7 +360,7 @@ class Unified:
 
     @cached_property
     def max_angle(self) -> float:
-        a = math.acos(-self._w) if self.xi > 0 else math.pi / 2
+        a = math.acos(-self._w)
         if math.isfinite(self.r_max):
             # r(angle) = sin / (cos + xi) increases with the angle on [0, a)
             def r_of(t: float) -> float:
@@ -452,6 +475,7 @@ class IdealFisheye:
     def __post_init__(self) -> None:
         if self.projection not in _IDEAL_MAX:
             raise ValueError(f"unknown ideal projection {self.projection!r}")
+        _check(self.projection, f=self.f, cx=self.cx, cy=self.cy, aspect=self.aspect)
 
     @property
     def name(self) -> str:
@@ -536,9 +560,13 @@ class Scaramuzza:
 
     def __post_init__(self) -> None:
         if len(self.ss) < 2 or not self.ss[0] < 0:
-            raise ValueError("Scaramuzza ss needs >= 2 coefficients and ss[0] < 0")
+            raise ValueError("scaramuzza ss needs >= 2 coefficients and ss[0] < 0")
+        _check("scaramuzza", xc=self.xc, yc=self.yc, c=self.c, d=self.d, e=self.e)
+        _check("scaramuzza", **{f"ss[{i}]": float(v) for i, v in enumerate(self.ss)})
+        if self.invpol is not None:
+            _check("scaramuzza", **{f"invpol[{i}]": float(v) for i, v in enumerate(self.invpol)})
         if self.c - self.d * self.e == 0:
-            raise ValueError("Scaramuzza affine matrix [[c, d], [e, 1]] is singular")
+            raise ValueError("scaramuzza affine matrix [[c, d], [e, 1]] is singular")
 
     @property
     def name(self) -> str:
@@ -618,6 +646,9 @@ class DoubleSphere:
     xi: float
     alpha: float
 
+    def __post_init__(self) -> None:
+        _check("ds", fx=self.fx, fy=self.fy, cx=self.cx, cy=self.cy, xi=self.xi, alpha=self.alpha)
+
     @property
     def name(self) -> str:
         return "ds"
@@ -674,6 +705,10 @@ class EUCM:
     cy: float
     alpha: float
     beta: float
+
+    def __post_init__(self) -> None:
+        _check("eucm", fx=self.fx, fy=self.fy, cx=self.cx, cy=self.cy, alpha=self.alpha,
+               beta=self.beta)  # fmt: skip
 
     @property
     def name(self) -> str:
