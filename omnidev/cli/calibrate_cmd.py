@@ -69,6 +69,9 @@ def register(sub: Any) -> None:
     from omnidev.cli.nonsvp_cmd import register_calibrate
 
     register_calibrate(csub)
+    from omnidev.cli.calibrate_fisheye_cmd import register_fisheye
+
+    register_fisheye(csub)
     from omnidev.cli.calibrate_import_cmd import register_import
 
     register_import(csub)

@@ -1,0 +1,813 @@
+"""Fisheye calibration from chessboard / ChArUco views: cv2.fisheye (KB4) and cv2.omnidir (Mei).
+
+Steps (docs/fisheye-calibration.md):
+
+1. :func:`detect_corners`: ``cv2.findChessboardCornersSB`` refined by ``cv2.cornerSubPix``,
+   or ``cv2.aruco.CharucoDetector`` for a ChArUco board.
+2. :func:`calibrate_views` runs the solver robustly: cv2.fisheye with
+   ``CALIB_RECOMPUTE_EXTRINSIC | CALIB_CHECK_COND | CALIB_FIX_SKEW`` (a view whose
+   extrinsic Jacobian is ill-conditioned is named by OpenCV, dropped, and the solver rerun),
+   cv2.omnidir with ``CALIB_FIX_SKEW`` (views its initialisation rejects are the ones missing
+   from its ``idx``); then a view whose own reprojection RMS exceeds
+   ``max(OUTLIER_MIN_PX, OUTLIER_FACTOR * median)`` is dropped (a misdetected board) and the
+   solver rerun. Every drop is recorded with its reason.
+3. Held-out error: K-fold cross-validation over the used views. Each fold is calibrated
+   without its views; each held-out view's pose is then fitted with those intrinsics
+   (:func:`fit_pose`: rays -> IPPE on the normalized plane, then Levenberg-Marquardt on the
+   pixel reprojection error) and its reprojection RMS reported. The camera returned is the
+   calibration on all used views.
+4. Parameter uncertainty from the Jacobian of the reprojection residuals (numerical, intrinsics
+   and every view's pose; the poses are eliminated by the Schur complement):
+   standard deviations and correlations of the intrinsics, and warnings when the data leave a
+   parameter poorly determined, when few views remain, or when the corners do not reach the
+   image periphery.
+
+RMS figures are the root mean square of the 2-D pixel error ``|uv_observed - uv_model|`` over
+the corners (as OpenCV's calibration RMS). Pixels: (0, 0) is the centre of the top-left pixel.
+Board frame and lengths (mm): :mod:`omnidev.fisheye.pattern`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.errors import CalibrationError
+from omnidev.fisheye.camera import MOUNTS, FisheyeCamera
+from omnidev.fisheye.models import KannalaBrandt, LensModel, Unified
+from omnidev.fisheye.pattern import Pattern
+
+FloatArray = NDArray[np.float64]
+Image = NDArray[np.uint8]
+
+MODELS = ("kb4", "mei")
+PARAMS: dict[str, tuple[str, ...]] = {
+    "kb4": ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"),
+    "mei": ("fx", "fy", "cx", "cy", "xi", "k1", "k2", "p1", "p2"),
+}
+KB4_FLAGS = cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_CHECK_COND | cv2.CALIB_FIX_SKEW
+MEI_FLAGS = cv2.omnidir.CALIB_FIX_SKEW
+CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 300, 1e-12)
+OUTLIER_FACTOR = 4.0  # a view whose RMS exceeds this many times the median is dropped ...
+OUTLIER_MIN_PX = 1.0  # ... if it also exceeds this
+MIN_VIEWS = 3
+FEW_VIEWS = 8  # fewer used views than this: a warning
+MIN_CORNERS = 8  # a ChArUco view with fewer corners is not used
+COVERAGE_WARN = 0.75  # corners reaching less of the way to the image border: a warning
+
+
+# ---------------------------------------------------------------- detection
+
+
+@dataclass(frozen=True)
+class Detection:
+    """The corners found in one image.
+
+    Attributes:
+        name: the image's name (file name), used in messages.
+        image_points: (N, 2) pixels.
+        object_points: (N, 3) the same corners in the board frame, mm.
+    """
+
+    name: str
+    image_points: FloatArray
+    object_points: FloatArray
+
+
+def _grey(image: Image) -> Image:
+    img = np.asarray(image)
+    if img.ndim == 3:
+        return np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), np.uint8)
+    return np.asarray(img, np.uint8)
+
+
+def _refine(grey: Image, uv: FloatArray, spacing: float) -> FloatArray:
+    half = int(np.clip(math.floor(0.4 * spacing), 2, 7))
+    pts = uv.reshape(-1, 1, 2).astype(np.float32)
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
+    out = cv2.cornerSubPix(grey, pts, (half, half), (-1, -1), crit)
+    return np.asarray(out, np.float64).reshape(-1, 2)
+
+
+def detect_corners(image: Image, pattern: Pattern, *, name: str = "") -> Detection | None:
+    """The pattern's corners in a (H, W[, 3]) uint8 image, or None if the board is not found.
+
+    A chessboard must be found whole (``cv2.findChessboardCornersSB`` with
+    ``CALIB_CB_NORMALIZE_IMAGE | CALIB_CB_EXHAUSTIVE | CALIB_CB_ACCURACY``), then each corner is
+    refined by ``cv2.cornerSubPix`` in a window of 0.4 corner spacings (2..7 px half-size).
+    A ChArUco board may be partly visible; fewer than :data:`MIN_CORNERS` corners is None.
+    """
+    grey = _grey(image)
+    if pattern.kind == "chessboard":
+        flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+        ok, corners = cv2.findChessboardCornersSB(grey, pattern.inner, flags=flags)
+        if not ok or corners is None:
+            return None
+        uv = np.asarray(corners, np.float64).reshape(-1, 2)
+        cx, cy = pattern.inner
+        grid = uv.reshape(cy, cx, 2)
+        spacing = min(
+            float(np.linalg.norm(np.diff(grid, axis=1), axis=-1).min()),
+            float(np.linalg.norm(np.diff(grid, axis=0), axis=-1).min()),
+        )
+        return Detection(name, _refine(grey, uv, spacing), pattern.object_points())
+    detector = cv2.aruco.CharucoDetector(pattern.charuco_board())
+    corners, ids, _, _ = detector.detectBoard(grey)
+    if ids is None or len(ids) < MIN_CORNERS:
+        return None
+    uv = np.asarray(corners, np.float64).reshape(-1, 2)
+    idx = np.asarray(ids, np.int64).ravel()
+    return Detection(name, uv, pattern.object_points()[idx])
+
+
+# ---------------------------------------------------------------- lens <-> parameters
+
+
+def lens_from_params(model: str, p: Sequence[float] | FloatArray) -> LensModel:
+    """A lens from the parameter vector named by :data:`PARAMS` (skew 0)."""
+    v = [float(x) for x in p]
+    if model == "kb4":
+        return KannalaBrandt(v[0], v[1], v[2], v[3], (v[4], v[5], v[6], v[7]))
+    return Unified(v[0], v[1], v[2], v[3], v[4], k1=v[5], k2=v[6], p1=v[7], p2=v[8])
+
+
+def params_of(lens: LensModel) -> FloatArray:
+    """The parameter vector of a KB4 or Mei lens, in :data:`PARAMS` order."""
+    if isinstance(lens, KannalaBrandt):
+        return np.array([lens.fx, lens.fy, lens.cx, lens.cy, *lens.k], np.float64)
+    if isinstance(lens, Unified):
+        return np.array(
+            [lens.fx, lens.fy, lens.cx, lens.cy, lens.xi, lens.k1, lens.k2, lens.p1, lens.p2],
+            np.float64,
+        )
+    raise ValueError(f"no calibration parameters for lens model {lens.name!r}")
+
+
+def effective_focal(lens: LensModel) -> tuple[float, float]:
+    """(fx, fy) of the image scale at the optical axis, px per rad.
+
+    KB4: fx, fy. Mei: fx / (1 + xi), fy / (1 + xi) (``r = f sin t / (cos t + xi)``).
+    """
+    if isinstance(lens, Unified):
+        return lens.fx / (1 + lens.xi), lens.fy / (1 + lens.xi)
+    if isinstance(lens, KannalaBrandt):
+        return lens.fx, lens.fy
+    raise ValueError(f"no focal length for lens model {lens.name!r}")
+
+
+# ---------------------------------------------------------------- poses, residuals
+
+
+def _rot(rvec: FloatArray) -> FloatArray:
+    r, _ = cv2.Rodrigues(np.asarray(rvec, np.float64).reshape(3, 1))
+    return np.asarray(r, np.float64)
+
+
+def reproject(lens: LensModel, obj: FloatArray, rvec: FloatArray, tvec: FloatArray) -> FloatArray:
+    """(N, 2) pixels of board points ``obj`` (mm) at pose (rvec, tvec): board -> optical."""
+    cam = obj @ _rot(rvec).T + np.asarray(tvec, np.float64).ravel()
+    uv, _ = lens.project(cam)
+    return np.asarray(uv, np.float64)
+
+
+def rms_px(err: FloatArray) -> float:
+    """Root mean square of the 2-D errors (N, 2), px."""
+    e = np.asarray(err, np.float64).reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum(e * e, axis=1)))) if len(e) else math.nan
+
+
+def _pose_jacobian(
+    lens: LensModel, obj: FloatArray, pose: FloatArray, base: FloatArray
+) -> FloatArray:
+    jac = np.empty((base.size, 6))
+    for k in range(6):
+        h = 1e-7 if k < 3 else 1e-6 * max(1.0, float(np.linalg.norm(pose[3:])))
+        q = pose.copy()
+        q[k] += h
+        jac[:, k] = (reproject(lens, obj, q[:3], q[3:]).ravel() - base) / h
+    return jac
+
+
+def fit_pose(
+    lens: LensModel, obj: FloatArray, uv: FloatArray, *, iterations: int = 30
+) -> tuple[FloatArray, FloatArray] | None:
+    """The board pose (rvec, tvec; board -> optical frame, mm) that best reprojects ``uv``.
+
+    Initial pose: the corners are unprojected to rays, rays in front of the lens plane
+    (z > 0.1) go on the normalized plane, and ``cv2.solvePnP`` (IPPE, planar board) solves
+    it; then Levenberg-Marquardt on the pixel reprojection error. None if fewer than 4
+    corners are usable.
+    """
+    rays, ok = lens.unproject(uv)
+    use = ok & (np.nan_to_num(rays[:, 2]) > 0.1)
+    if int(use.sum()) < 4:
+        return None
+    norm = rays[use, :2] / rays[use, 2:]
+    found, rvec, tvec = cv2.solvePnP(obj[use], norm, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+    if not found:
+        return None
+    pose = np.concatenate([np.ravel(rvec), np.ravel(tvec)]).astype(np.float64)
+    target = np.asarray(uv, np.float64).ravel()
+    lam = 1e-3
+    res = reproject(lens, obj, pose[:3], pose[3:]).ravel() - target
+    cost = float(np.nansum(res * res))
+    for _ in range(iterations):
+        if not np.all(np.isfinite(res)):
+            return None
+        jac = _pose_jacobian(lens, obj, pose, res + target)
+        a = jac.T @ jac
+        g = jac.T @ res
+        improved = False
+        for _ in range(10):
+            step = np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), -g)
+            trial = pose + step
+            r2 = reproject(lens, obj, trial[:3], trial[3:]).ravel() - target
+            c2 = float(np.sum(r2 * r2)) if np.all(np.isfinite(r2)) else math.inf
+            if c2 < cost:
+                pose, res, cost, lam = trial, r2, c2, max(lam / 10, 1e-9)
+                improved = True
+                break
+            lam *= 10
+        if not improved or float(np.abs(step).max()) < 1e-12:
+            break
+    return pose[:3].copy(), pose[3:].copy()
+
+
+# ---------------------------------------------------------------- the solvers
+
+
+@dataclass
+class _Solve:
+    lens: LensModel
+    used: list[int]  # indices into the views given
+    rvecs: list[FloatArray]
+    tvecs: list[FloatArray]
+    dropped: dict[int, str] = field(default_factory=dict)
+
+
+_COND = re.compile(r"input array (\d+)")
+
+
+def _run_kb4(
+    obj: list[FloatArray], img: list[FloatArray], size: tuple[int, int]
+) -> tuple[LensModel, list[FloatArray], list[FloatArray], list[int], dict[int, str]]:
+    idx = list(range(len(obj)))
+    dropped: dict[int, str] = {}
+    while True:
+        if len(idx) < MIN_VIEWS:
+            return _few(idx, dropped)
+        try:
+            _, k, d, rvecs, tvecs = cv2.fisheye.calibrate(
+                [obj[i].reshape(1, -1, 3) for i in idx],
+                [img[i].reshape(1, -1, 2) for i in idx],
+                size,
+                np.zeros((3, 3)),
+                np.zeros(4),
+                flags=KB4_FLAGS,
+                criteria=CRITERIA,
+            )
+        except cv2.error as exc:
+            m = _COND.search(str(exc))
+            if m is None or int(m.group(1)) >= len(idx):
+                raise CalibrationError(
+                    f"cv2.fisheye.calibrate failed: {_first_line(exc)}"
+                ) from None
+            bad = idx.pop(int(m.group(1)))
+            dropped[bad] = "ill-conditioned pose (cv2.fisheye CALIB_CHECK_COND)"
+            continue
+        km = np.asarray(k, np.float64)
+        dd = np.asarray(d, np.float64).ravel()
+        lens = KannalaBrandt(
+            float(km[0, 0]),
+            float(km[1, 1]),
+            float(km[0, 2]),
+            float(km[1, 2]),
+            (float(dd[0]), float(dd[1]), float(dd[2]), float(dd[3])),
+        )
+        return lens, [np.ravel(r) for r in rvecs], [np.ravel(t) for t in tvecs], idx, dropped
+
+
+def _run_mei(
+    obj: list[FloatArray], img: list[FloatArray], size: tuple[int, int]
+) -> tuple[LensModel, list[FloatArray], list[FloatArray], list[int], dict[int, str]]:
+    if len(obj) < MIN_VIEWS:
+        return _few(list(range(len(obj))), {})
+    try:
+        _, k, xi, d, rvecs, tvecs, used = cv2.omnidir.calibrate(
+            [obj[i].reshape(1, -1, 3) for i in range(len(obj))],
+            [img[i].reshape(1, -1, 2) for i in range(len(obj))],
+            size,
+            np.zeros((3, 3)),
+            np.zeros(1),
+            np.zeros(4),
+            MEI_FLAGS,
+            CRITERIA,
+        )
+    except cv2.error as exc:
+        raise CalibrationError(f"cv2.omnidir.calibrate failed: {_first_line(exc)}") from None
+    idx = [int(i) for i in np.asarray(used).ravel()] if used is not None else []
+    dropped = {
+        i: "rejected by cv2.omnidir's initialisation" for i in range(len(obj)) if i not in idx
+    }
+    if len(idx) < MIN_VIEWS:
+        return _few(idx, dropped)
+    km = np.asarray(k, np.float64)
+    dd = np.asarray(d, np.float64).ravel()
+    lens = Unified(
+        float(km[0, 0]),
+        float(km[1, 1]),
+        float(km[0, 2]),
+        float(km[1, 2]),
+        float(np.asarray(xi).ravel()[0]),
+        k1=float(dd[0]),
+        k2=float(dd[1]),
+        p1=float(dd[2]),
+        p2=float(dd[3]),
+    )
+    return lens, [np.ravel(r) for r in rvecs], [np.ravel(t) for t in tvecs], idx, dropped
+
+
+class _TooFewError(Exception):
+    def __init__(self, used: list[int], dropped: dict[int, str]) -> None:
+        super().__init__("too few views")
+        self.used = used
+        self.dropped = dropped
+
+
+def _few(
+    idx: list[int], dropped: dict[int, str]
+) -> tuple[LensModel, list[FloatArray], list[FloatArray], list[int], dict[int, str]]:
+    raise _TooFewError(idx, dropped)
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = [s.strip() for s in str(exc).splitlines() if s.strip()]
+    return lines[-1] if lines else type(exc).__name__
+
+
+def _solve(
+    model: str, obj: list[FloatArray], img: list[FloatArray], size: tuple[int, int]
+) -> _Solve:
+    """The solver on views ``obj``/``img``, dropping rejected and outlying views.
+
+    Raises _TooFewError when fewer than MIN_VIEWS views remain.
+    """
+    run = _run_kb4 if model == "kb4" else _run_mei
+    keep = list(range(len(obj)))
+    dropped: dict[int, str] = {}
+    while True:
+        try:
+            lens, rvecs, tvecs, used, drops = run(
+                [obj[i] for i in keep], [img[i] for i in keep], size
+            )
+        except _TooFewError as few:
+            dropped.update({keep[i]: why for i, why in few.dropped.items()})
+            raise _TooFewError([keep[i] for i in few.used], dropped) from None
+        dropped.update({keep[i]: why for i, why in drops.items()})
+        used = [keep[i] for i in used]
+        errs = [
+            rms_px(reproject(lens, obj[i], r, t) - img[i])
+            for i, r, t in zip(used, rvecs, tvecs, strict=True)
+        ]
+        med = float(np.median(errs))
+        worst = int(np.argmax(errs))
+        limit = max(OUTLIER_MIN_PX, OUTLIER_FACTOR * med)
+        if (errs[worst] > limit or not math.isfinite(errs[worst])) and len(used) > MIN_VIEWS:
+            dropped[used[worst]] = (
+                f"outlier: reprojection RMS {errs[worst]:.2f} px > {limit:.2f} px "
+                f"({OUTLIER_FACTOR:g} x the median)"
+            )
+            keep = [i for i in used if i != used[worst]]
+            continue
+        return _Solve(lens, used, rvecs, tvecs, dropped)
+
+
+# ---------------------------------------------------------------- uncertainty
+
+
+def intrinsic_covariance(
+    model: str,
+    lens: LensModel,
+    obj: Sequence[FloatArray],
+    img: Sequence[FloatArray],
+    rvecs: Sequence[FloatArray],
+    tvecs: Sequence[FloatArray],
+) -> FloatArray:
+    """Covariance of the intrinsics (:data:`PARAMS` order) with the view poses eliminated.
+
+    Gauss-Newton approximation ``sigma^2 (J^T J)^-1`` from numerical Jacobians,
+    ``sigma^2`` = residual sum of squares / (residuals - parameters).
+    """
+    p0 = params_of(lens)
+    n_par = len(p0)
+    a = np.zeros((n_par, n_par))
+    ssr = 0.0
+    n_res = 0
+    for o, uv, r, t in zip(obj, img, rvecs, tvecs, strict=True):
+        base = reproject(lens, o, r, t).ravel()
+        res = base - np.asarray(uv, np.float64).ravel()
+        ssr += float(res @ res)
+        n_res += res.size
+        ji = np.empty((res.size, n_par))
+        for k in range(n_par):
+            h = 1e-6 * max(1.0, abs(float(p0[k])))
+            q = p0.copy()
+            q[k] += h
+            ji[:, k] = (reproject(lens_from_params(model, q), o, r, t).ravel() - base) / h
+        jp = _pose_jacobian(lens, o, np.concatenate([np.ravel(r), np.ravel(t)]), base)
+        c = jp.T @ jp
+        b = ji.T @ jp
+        a += ji.T @ ji - b @ np.linalg.solve(c, b.T)
+    dof = max(n_res - n_par - 6 * len(obj), 1)
+    sigma2 = ssr / dof
+    cov = np.asarray(np.linalg.pinv(a) * sigma2, np.float64)
+    return cov
+
+
+# ---------------------------------------------------------------- results
+
+
+Status = Literal["used", "dropped", "not found"]
+
+
+@dataclass(frozen=True)
+class ViewError:
+    """One image's part in the calibration.
+
+    Attributes:
+        name: the image's name.
+        status: ``used`` (a training view of the returned camera), ``dropped`` (the solver
+            rejected it; ``note`` says why) or ``not found`` (no board detected).
+        n_points: corners detected.
+        train_rms_px: reprojection RMS with the final calibration and the view's own
+            calibrated pose (used views; NaN otherwise).
+        heldout_rms_px: reprojection RMS when the view was held out: intrinsics calibrated
+            without it, its pose fitted to it (used views, with K-fold; for dropped views:
+            the final intrinsics and a fitted pose). NaN when not measured.
+        note: why a view was dropped, or other remarks.
+    """
+
+    name: str
+    status: Status
+    n_points: int
+    train_rms_px: float
+    heldout_rms_px: float
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class FisheyeCalibration:
+    """The result of :func:`calibrate_views`.
+
+    Attributes:
+        camera: the calibrated camera (lens in the optical frame, the given mount).
+        model: ``kb4`` or ``mei``.
+        flags: the solver flags used, as text.
+        train_rms_px: RMS over all used views' corners with the final calibration.
+        heldout_rms_px: RMS over all used views' corners, each with the fold that held it out
+            (NaN if no held-out evaluation).
+        folds: number of folds (0: none).
+        views: every image, in the order given.
+        std: standard deviation of every intrinsic (:data:`PARAMS` names).
+        correlation: (P, P) correlation matrix of the intrinsics.
+        coverage: largest corner distance from the principal point / the distance from the
+            principal point to the nearest image border.
+        warnings: one line each: parameters poorly determined, too few views, poor coverage.
+    """
+
+    camera: FisheyeCamera
+    model: str
+    flags: str
+    train_rms_px: float
+    heldout_rms_px: float
+    folds: int
+    views: tuple[ViewError, ...]
+    std: dict[str, float]
+    correlation: FloatArray
+    coverage: float
+    warnings: tuple[str, ...]
+
+    @property
+    def params(self) -> dict[str, float]:
+        return dict(zip(PARAMS[self.model], params_of(self.camera.lens).tolist(), strict=True))
+
+
+def _flag_names(model: str) -> str:
+    if model == "kb4":
+        return (
+            "cv2.fisheye.calibrate: CALIB_RECOMPUTE_EXTRINSIC | CALIB_CHECK_COND | CALIB_FIX_SKEW"
+        )
+    return "cv2.omnidir.calibrate: CALIB_FIX_SKEW"
+
+
+_OCTANTS = (
+    "right",
+    "lower right",
+    "bottom",
+    "lower left",
+    "left",
+    "upper left",
+    "top",
+    "upper right",
+)
+
+
+def _coverage(
+    lens: LensModel, size: tuple[int, int], img: Sequence[FloatArray]
+) -> tuple[float, list[str], float]:
+    """Reach of the corners toward the border (fraction) and the outer octants with none."""
+    w, h = size
+    cx, cy = (float(c) for c in params_of(lens)[2:4])
+    inner = min(cx + 0.5, w - 0.5 - cx, cy + 0.5, h - 0.5 - cy)
+    pts = np.concatenate([np.asarray(p).reshape(-1, 2) for p in img])
+    d = pts - [cx, cy]
+    r = np.hypot(d[:, 0], d[:, 1])
+    reach = float(r.max() / inner) if inner > 0 else 0.0
+    az = np.arctan2(d[:, 1], d[:, 0])  # image angle, v down: 90 deg = bottom
+    octant = np.floor((az + math.pi / 8) / (math.pi / 4)).astype(int) % 8
+    outer = r > 0.6 * inner
+    missing = [_OCTANTS[k] for k in range(8) if not np.any(outer & (octant == k))]
+    return reach, missing, float(r.max())
+
+
+def projection_sigma_px(
+    model: str,
+    lens: LensModel,
+    size: tuple[int, int],
+    cov: FloatArray,
+    *,
+    within_px: float = math.inf,
+    n: int = 25,
+) -> tuple[FloatArray, FloatArray]:
+    """1-sigma uncertainty (px) of the projection over an n x n grid of image pixels.
+
+    The grid pixels within ``within_px`` of the principal point are unprojected with ``lens``;
+    a change of the intrinsics moves their images by ``J dp`` (J: numerical derivative by the
+    intrinsics). The part of that motion a rotation of the camera explains (a shift of the
+    principal point against the board poses, say) is removed by least squares, since it is
+    not an error of the lens model; the rest gets the covariance ``P J cov J^T P^T`` and the
+    figure is ``sqrt(trace)`` per pixel. Returns (M, 2) pixels and (M,) sigmas.
+    """
+    w, h = size
+    p0 = params_of(lens)
+    uu, vv = np.meshgrid(np.linspace(0, w - 1, n), np.linspace(0, h - 1, n))
+    uv = np.stack([uu.ravel(), vv.ravel()], -1)
+    near = np.hypot(uv[:, 0] - p0[2], uv[:, 1] - p0[3]) <= within_px
+    rays, ok = lens.unproject(uv[near])
+    rays, uv = rays[ok], uv[near][ok]
+    if len(uv) == 0:
+        return uv, np.zeros(0)
+    jac = np.zeros((len(uv), 2, len(p0)))
+    for k in range(len(p0)):
+        step = 1e-6 * max(1.0, abs(float(p0[k])))
+        q = p0.copy()
+        q[k] += step
+        moved, _ = lens_from_params(model, q).project(rays)
+        jac[:, :, k] = (moved - uv) / step
+    jrot = np.zeros((len(uv), 2, 3))
+    for k in range(3):
+        omega = np.zeros(3)
+        omega[k] = 1e-6
+        moved, _ = lens.project(rays + np.cross(omega, rays))
+        jrot[:, :, k] = (moved - uv) / 1e-6
+    jr = jrot.reshape(-1, 3)
+    proj = np.eye(len(jr)) - jr @ np.linalg.pinv(jr)
+    jp = proj @ jac.reshape(-1, len(p0))
+    var = np.einsum("ik,kl,il->i", jp, cov, jp).reshape(-1, 2).sum(axis=1)
+    return uv, np.sqrt(np.clip(var, 0, None))
+
+
+FOCAL_REL_WARN = 0.0025  # relative 1-sigma of the focal length
+CENTRE_WARN_PX = 1.0  # 1-sigma of the principal point
+XI_WARN = 0.02  # 1-sigma of xi
+PROJECTION_WARN_PX = 0.5  # 1-sigma of the projection where the corners reach
+
+
+def _warnings(
+    model: str,
+    lens: LensModel,
+    size: tuple[int, int],
+    n_used: int,
+    cov: FloatArray,
+    reach: float,
+    missing: list[str],
+    reach_px: float,
+) -> list[str]:
+    out: list[str] = []
+    names = PARAMS[model]
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = np.nan_to_num(cov / np.outer(std, std))
+    p = params_of(lens)
+    if n_used < FEW_VIEWS:
+        out.append(
+            f"only {n_used} views used: the parameters rest on little data; take "
+            f"{FEW_VIEWS} or more, tilted, with boards reaching the image border"
+        )
+    if reach < COVERAGE_WARN:
+        out.append(
+            f"the corners reach only {100 * reach:.0f} % of the way from the principal point "
+            "to the image border: the distortion beyond is extrapolated; add views with the "
+            "board near the border"
+        )
+    elif missing:
+        out.append(
+            "no corners in the outer part of the image toward the "
+            + ", ".join(missing)
+            + ": add views with the board there"
+        )
+
+    def partner(k: int) -> str:
+        j = max((j for j in range(len(names)) if j != k), key=lambda j: abs(corr[k, j]))
+        return f"correlation with {names[j]} {corr[k, j]:+.3f}"
+
+    for k, name in enumerate(names):
+        bad = (
+            (name in ("fx", "fy") and std[k] > FOCAL_REL_WARN * abs(p[k]))
+            or (name in ("cx", "cy") and std[k] > CENTRE_WARN_PX)
+            or (name == "xi" and std[k] > XI_WARN)
+        )
+        if bad:
+            out.append(f"{name} is poorly determined: {p[k]:.6g} +- {std[k]:.3g} ({partner(k)})")
+    if model == "mei" and any(w.startswith(("fx ", "fy ", "xi ")) for w in out):
+        g = np.zeros(len(names))
+        g[0] = 1 / (1 + p[4])
+        g[4] = -p[0] / (1 + p[4]) ** 2
+        f_eff = p[0] / (1 + p[4])
+        s_eff = math.sqrt(max(float(g @ cov @ g), 0.0))
+        out.append(
+            f"(fx, xi and the distortion trade off against each other; the image scale at the "
+            f"axis fx / (1 + xi) = {f_eff:.6g} +- {s_eff:.2g} px/rad is what the data fix)"
+        )
+    uv, sig = projection_sigma_px(model, lens, size, cov, within_px=reach_px)
+    if len(sig):
+        worst = int(np.argmax(sig))
+        if sig[worst] > PROJECTION_WARN_PX:
+            out.append(
+                f"the projection is uncertain by up to {sig[worst]:.2f} px (1 sigma) where the "
+                f"corners reach, at pixel ({uv[worst, 0]:.0f}, {uv[worst, 1]:.0f}): add views"
+            )
+    return out
+
+
+def _rms_views(
+    lens: LensModel,
+    obj: Sequence[FloatArray],
+    img: Sequence[FloatArray],
+    rvecs: Sequence[FloatArray],
+    tvecs: Sequence[FloatArray],
+) -> list[FloatArray]:
+    return [
+        reproject(lens, o, r, t) - uv for o, uv, r, t in zip(obj, img, rvecs, tvecs, strict=True)
+    ]
+
+
+def _heldout_error(lens: LensModel, obj: FloatArray, uv: FloatArray) -> FloatArray | None:
+    pose = fit_pose(lens, obj, uv)
+    if pose is None:
+        return None
+    return reproject(lens, obj, pose[0], pose[1]) - uv
+
+
+def calibrate_views(
+    detections: Sequence[Detection | None],
+    image_size: tuple[int, int],
+    model: str,
+    *,
+    names: Sequence[str] | None = None,
+    holdout: int = 4,
+    mount: FloatArray | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> FisheyeCalibration:
+    """Calibrate a KB4 or Mei lens from the detected corners of each image.
+
+    Args:
+        detections: one per image, None where no board was found.
+        image_size: (width, height) of every image, px.
+        model: ``"kb4"`` (cv2.fisheye) or ``"mei"`` (cv2.omnidir).
+        names: the images' names for the report (default: the detections' names).
+        holdout: K of the K-fold held-out evaluation (0: none; at most the number of views).
+        mount: the camera's mount (:data:`omnidev.fisheye.camera.MOUNTS`), default up.
+        progress: called with a short message before each solver run.
+
+    Raises:
+        CalibrationError: no board in any image, fewer than 3 usable views, a solver failure.
+    """
+    if model not in MODELS:
+        raise CalibrationError(f"model {model!r}: choose from {', '.join(MODELS)}")
+    names = (
+        list(names)
+        if names is not None
+        else [d.name if d is not None else f"image {i}" for i, d in enumerate(detections)]
+    )
+    found = [i for i, d in enumerate(detections) if d is not None]
+    if not found:
+        raise CalibrationError(
+            f"no board found in any of the {len(detections)} images"
+            + (f" ({names[0]} ...)" if names else "")
+        )
+    if len(found) < MIN_VIEWS:
+        raise CalibrationError(
+            f"a board was found in only {len(found)} image(s) ("
+            + ", ".join(names[i] for i in found)
+            + f"); at least {MIN_VIEWS} views are needed"
+        )
+    obj = [detections[i].object_points for i in found]  # type: ignore[union-attr]
+    img = [detections[i].image_points for i in found]  # type: ignore[union-attr]
+    say = progress or (lambda _msg: None)
+    say(f"calibrating {model} on {len(found)} views")
+    try:
+        final = _solve(model, obj, img, image_size)
+    except _TooFewError as few:
+        usable = ", ".join(names[found[i]] for i in few.used) or "none"
+        raise CalibrationError(
+            f"only {len(few.used)} usable view(s) after dropping the rejected ones ({usable}); "
+            f"at least {MIN_VIEWS} are needed"
+        ) from None
+    lens = final.lens
+    train = _rms_views(
+        lens, [obj[i] for i in final.used], [img[i] for i in final.used], final.rvecs, final.tvecs
+    )
+    train_by = dict(zip(final.used, train, strict=True))
+
+    # K-fold held-out errors over the used views
+    k = min(int(holdout), len(final.used))
+    held: dict[int, FloatArray] = {}
+    notes: dict[int, str] = {}
+    if k >= 2:
+        for f in range(k):
+            out_idx = final.used[f::k]
+            in_idx = [i for i in final.used if i not in out_idx]
+            say(f"held-out fold {f + 1}/{k}")
+            try:
+                fold = _solve(model, [obj[i] for i in in_idx], [img[i] for i in in_idx], image_size)
+            except (_TooFewError, CalibrationError):
+                for i in out_idx:
+                    notes[i] = f"fold {f + 1} could not be calibrated"
+                continue
+            for i in out_idx:
+                e = _heldout_error(fold.lens, obj[i], img[i])
+                if e is None:
+                    notes[i] = "held-out pose not found"
+                else:
+                    held[i] = e
+    elif k == 1:
+        k = 0
+    for i, why in final.dropped.items():
+        e = _heldout_error(lens, obj[i], img[i])
+        if e is not None:
+            held[i] = e
+        notes[i] = why
+
+    # uncertainty, warnings
+    cov = intrinsic_covariance(
+        model,
+        lens,
+        [obj[i] for i in final.used],
+        [img[i] for i in final.used],
+        final.rvecs,
+        final.tvecs,
+    )
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(std, std)
+    corr = np.nan_to_num(corr)
+    reach, missing, reach_px = _coverage(lens, image_size, [img[i] for i in final.used])
+    warns = _warnings(model, lens, image_size, len(final.used), cov, reach, missing, reach_px)
+
+    views: list[ViewError] = []
+    pos = {j: n for n, j in enumerate(found)}
+    for i, name in enumerate(names):
+        if i not in pos:
+            views.append(ViewError(name, "not found", 0, math.nan, math.nan, "no board found"))
+            continue
+        j = pos[i]
+        n = len(img[j])
+        h_rms = rms_px(held[j]) if j in held else math.nan
+        if j in train_by:
+            views.append(ViewError(name, "used", n, rms_px(train_by[j]), h_rms, notes.get(j, "")))
+        else:
+            views.append(ViewError(name, "dropped", n, math.nan, h_rms, notes.get(j, "")))
+    held_used = [held[j] for j in final.used if j in held]
+    heldout = rms_px(np.concatenate(held_used)) if held_used and k else math.nan
+    camera = FisheyeCamera(lens, image_size, MOUNTS["up"] if mount is None else mount)
+    return FisheyeCalibration(
+        camera=camera,
+        model=model,
+        flags=_flag_names(model),
+        train_rms_px=rms_px(np.concatenate(train)),
+        heldout_rms_px=heldout,
+        folds=k,
+        views=tuple(views),
+        std=dict(zip(PARAMS[model], std.tolist(), strict=True)),
+        correlation=corr,
+        coverage=reach,
+        warnings=tuple(warns),
+    )
