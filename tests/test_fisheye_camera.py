@@ -13,8 +13,8 @@ from omnidev.cli.main import main
 from omnidev.errors import CalibrationError
 from omnidev.fisheye.camera import MOUNTS, FisheyeCamera
 from omnidev.fisheye.camfile import camera_from_file, read_camera_file, write_camera_file
-from omnidev.fisheye.models import IdealFisheye, KannalaBrandt, Scaramuzza
-from omnidev.sim import RoomScene, render_omni, render_view
+from omnidev.fisheye.models import IdealFisheye, KannalaBrandt, Scaramuzza, Unified
+from omnidev.sim import RoomScene, SvpHyperbolicCamera, render_omni, render_view
 from omnidev.viewspec import parse_view
 from tests.conftest import psnr
 from tests.test_fisheye_models import MODELS, SS
@@ -129,12 +129,33 @@ def test_mounts_follow_the_conventions() -> None:
     assert narrow.default_elevation_deg() == pytest.approx((-corner, corner), abs=0.01)
 
 
+def test_mirror_mount_makes_the_unified_model_the_sim_mirror_camera() -> None:
+    """The SVP hyperbolic-mirror camera of omnidev.sim (eq. 2.1) is exactly a unified model,
+    xi = 2bc / (b^2 + c^2) and focal f a^2 / (b^2 + c^2), seen through the mirror-up mount:
+    the image centre sees the camera (down) and the image keeps azimuth sign +1."""
+    sim = SvpHyperbolicCamera.default()
+    a, b, c = sim.a, sim.b, sim.c
+    g = sim.f * a * a / (b * b + c * c)
+    lens = Unified(g, g, sim.center[0], sim.center[1], xi=2 * b * c / (b * b + c * c))
+    cam = FisheyeCamera(lens, sim.image_size, MOUNTS["mirror-up"])
+    rng = np.random.default_rng(4)
+    pts = rng.normal(size=(5000, 3)) * 3.0
+    want, ok_sim = sim.project(pts, finite=True)
+    got, ok = cam.project(pts, finite=True)
+    both = ok_sim & ok
+    assert both.sum() > 1000 and np.array_equal(ok_sim, both)  # (ours has no rim or cut-off)
+    assert np.abs(got[both] - want[both]).max() < 1e-9
+    with pytest.raises(ValueError, match="orthonormal"):
+        FisheyeCamera(lens, sim.image_size, 1.1 * np.eye(3))
+
+
 def all_cameras() -> list[tuple[str, FisheyeCamera]]:
     cams = [(key, FisheyeCamera(lens, (640, 480))) for key, (lens, _) in MODELS.items()]
     tilted = cv2.Rodrigues(np.array([0.1, -0.2, 0.3]))[0] @ MOUNTS["down"]
     inv = tuple(np.linspace(400, -3, 9))
     cams += [
         ("kb4-tilted-95", FisheyeCamera(MODELS["kb4"][0], (640, 480), tilted, 95.0)),
+        ("mei-mirror-up", FisheyeCamera(MODELS["mei"][0], (640, 480), MOUNTS["mirror-up"])),
         ("scaramuzza-invpol", FisheyeCamera(Scaramuzza(SS, 240.3, 319.1, invpol=inv), (640, 480))),
     ]
     return cams

@@ -7,7 +7,7 @@ Two frames (docs/fisheye.md, docs/conventions.md):
 - the lens's **optical frame** (OpenCV's): x right in the image, y down, z along
   the optical axis; the lens models of :mod:`omnidev.fisheye.models` live here.
 
-The mount is the rotation between them: ``x_opt = mount @ x_cam``. Its rows are
+The mount maps one to the other: ``x_opt = mount @ x_cam``. Its rows are
 the optical axes written in the camera frame (row 0: image right, row 1: image
 down, row 2: the optical axis). :data:`MOUNTS` holds the three usual ones:
 
@@ -16,7 +16,19 @@ down, row 2: the optical axis). :data:`MOUNTS` holds the three usual ones:
 - ``down``: the lens looks down (-z), e.g. from a ceiling; image right = +x,
   image down = -y (azimuth sign -1);
 - ``forward``: the optical axis is horizontal along +x; image right = -y,
-  image down = -z (the picture is upright).
+  image down = -z (the picture is upright);
+- ``mirror-up``: a catadioptric camera below its mirror (the usual rig)
+  calibrated with a central lens model (unified/Mei, OCamCalib): the model's
+  optical axis is the ray of the image centre, which sees the camera itself
+  (down), and image right = +x, image down = +y (azimuth sign +1, radius growing
+  with elevation, as :class:`omnidev.sim.SvpHyperbolicCamera`). The mirror
+  reverses handedness, so this mount is a reflection (determinant -1):
+  diag(1, 1, -1);
+- ``mirror-down``: the same rig hanging, camera above the mirror looking down:
+  diag(1, -1, 1) (azimuth sign -1).
+
+A mount is any orthonormal matrix: a rotation for a lens, a reflection for a
+mirror camera whose calibration frame is the mirror image of space.
 """
 
 from __future__ import annotations
@@ -34,18 +46,24 @@ MOUNTS: dict[str, FloatArray] = {
     "up": np.eye(3),
     "down": np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]),
     "forward": np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]),
+    "mirror-up": np.diag([1.0, 1.0, -1.0]),
+    "mirror-down": np.diag([1.0, -1.0, 1.0]),
 }
 for _m in MOUNTS.values():
     _m.setflags(write=False)
 
 
 def check_rotation(mount: FloatArray, *, tol: float = 1e-6) -> FloatArray:
-    """``mount`` as a float64 3x3 rotation; ValueError unless orthonormal with det +1."""
+    """``mount`` as a float64 3x3 matrix; ValueError unless orthonormal.
+
+    The determinant is +1 (a rotation: a lens) or -1 (a reflection: a mirror
+    camera calibrated with a lens model, see ``mirror-up``).
+    """
     m = np.asarray(mount, np.float64)
     if m.shape != (3, 3) or not np.all(np.isfinite(m)):
         raise ValueError(f"mount must be a finite 3x3 matrix, not shape {m.shape}")
-    if not np.allclose(m @ m.T, np.eye(3), atol=tol) or np.linalg.det(m) < 0:
-        raise ValueError("mount must be a rotation (orthonormal, determinant +1)")
+    if not np.allclose(m @ m.T, np.eye(3), atol=tol):
+        raise ValueError("mount must be orthonormal (a rotation, or a reflection for a mirror)")
     return m
 
 
@@ -60,7 +78,7 @@ class FisheyeCamera:
     Attributes:
         lens: the lens model (optical frame).
         image_size: (width, height) of the camera's images, px.
-        mount: 3x3 rotation, ``x_opt = mount @ x_cam`` (see the module docstring).
+        mount: 3x3 orthonormal matrix, ``x_opt = mount @ x_cam`` (see the module docstring).
         max_angle_deg: half field of view, deg from the optical axis, to use at most
             (e.g. to drop the lens barrel's rim); None = all the lens model images.
     """

@@ -5,7 +5,7 @@ name: kb4, mei, equidistant, equisolid, stereographic, orthographic, scaramuzza,
 ds, eucm), the model's parameters under the names of its dataclass fields in
 :mod:`omnidev.fisheye.models` (numbers; tuples such as kb4's ``k`` or
 scaramuzza's ``ss`` and optional ``invpol`` as 1xN matrices), ``image_width``,
-``image_height`` (px), ``mount`` (3x3 rotation, ``x_opt = mount @ x_cam``;
+``image_height`` (px), ``mount`` (3x3 orthonormal, ``x_opt = mount @ x_cam``;
 optional, default up) and ``max_angle_deg`` (optional). Every error names the
 file and the key.
 """
