@@ -118,11 +118,27 @@ def maps_from_pixels(uv: FloatArray, valid: BoolArray, source_size: tuple[int, i
     return Maps(map_x, map_y, ok, (w, h))
 
 
-def build_maps(camera: CameraModel, view: View) -> Maps:
-    """Remap maps that turn images of ``camera`` into ``view``."""
+def project_maps(camera: CameraModel, view: View) -> Maps:
+    """Maps by the plain route: the view's points through ``camera.project``."""
     pts = view.points(camera.default_elevation_deg())
     uv, valid = camera.project(pts, finite=view.finite)
     return maps_from_pixels(uv, valid, camera.image_size)
+
+
+def build_maps(camera: CameraModel, view: View) -> Maps:
+    """Remap maps that turn images of ``camera`` into ``view``.
+
+    A camera model may offer a faster route to the same maps as an optional
+    method ``view_maps(view) -> Maps`` (it returns what :func:`project_maps`
+    would, up to float32 rounding); otherwise the view's points go through
+    ``camera.project``.
+    """
+    fast = getattr(camera, "view_maps", None)
+    if callable(fast):
+        maps = fast(view)
+        if isinstance(maps, Maps):
+            return maps
+    return project_maps(camera, view)
 
 
 def unwarp(
