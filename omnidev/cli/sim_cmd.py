@@ -59,6 +59,9 @@ def register(sub: Any) -> None:
     from omnidev.cli.sim_nonsvp_cmd import register_nonsvp
 
     register_nonsvp(ssub)
+    from omnidev.cli.sim_chessboard_cmd import register_chessboard
+
+    register_chessboard(ssub)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -419,3 +419,28 @@ def render_sequence(
             for i, v in enumerate(views)
         )
     return BoardSequence(lens, image_size, pattern, views, rendered)
+
+
+def default_lens(model: str, image_size: tuple[int, int] = (800, 800)) -> Lens:
+    """The test lenses: a ~200-degree-class KB4 or a Mei lens, scaled to ``image_size``.
+
+    At 800 x 800: KB4 fx 290, fy 289.3, centre (402.1, 397.6), k (0.012, -0.006, 0.0021,
+    -0.0004); Mei fx 455, fy 454.1, centre (398.9, 402.4), xi 0.95, k1 -0.03, k2 0.006,
+    p1 0.0004, p2 -0.0003. Focal lengths scale with the smaller side, the centre keeps its
+    offset from the image centre (scaled).
+    """
+    from omnidev.fisheye.models import KannalaBrandt, Unified
+
+    w, h = image_size
+    s = min(w, h) / 800.0
+    mu, mv = (w - 1) / 2, (h - 1) / 2
+    if model == "kb4":
+        return KannalaBrandt(
+            290.0 * s, 289.3 * s, mu + 2.6 * s, mv - 1.9 * s, (0.012, -0.006, 0.0021, -0.0004)
+        )
+    if model == "mei":
+        return Unified(
+            455.0 * s, 454.1 * s, mu - 0.6 * s, mv + 2.9 * s, 0.95,
+            k1=-0.03, k2=0.006, p1=0.0004, p2=-0.0003,
+        )  # fmt: skip
+    raise ValueError(f"no default lens for model {model!r}: kb4 or mei")
