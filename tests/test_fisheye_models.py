@@ -352,6 +352,13 @@ def test_scaramuzza_invpol_and_conventions() -> None:
     a, _ = lens.project(rays)
     b, okb = fitted.project(rays)
     assert okb.all() and np.abs(a - b).max() < 0.05
+    # beyond the fitted 100 degrees the polynomial is extrapolated: masked where it strays
+    t = np.radians(np.arange(100.0, 180.0, 0.5))
+    far = np.stack([np.sin(t), 0 * t, np.cos(t)], -1)
+    exact, ok_exact = lens.project(far)
+    fit, ok_fit = fitted.project(far)
+    assert ok_exact.all() and not ok_fit.all()
+    assert np.abs(fit[ok_fit] - exact[ok_fit]).max() <= 1.0 + 1e-6
 
 
 def test_scaramuzza_reproduces_ocamcalib_on_real_corners() -> None:

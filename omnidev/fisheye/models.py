@@ -531,6 +531,10 @@ class IdealFisheye:
 # ---------------------------------------------------------------- Scaramuzza / OCamCalib
 
 
+INVPOL_TOL_PX = 1.0
+"""How far (px) OCamCalib's invpol may stray from the ss polynomial before a ray is masked."""
+
+
 @dataclass(frozen=True)
 class Scaramuzza:
     """OCamCalib's model (Scaramuzza 2006), in OCamCalib's own terms (calib_results.txt).
@@ -547,7 +551,10 @@ class Scaramuzza:
     ``project`` uses ``invpol`` (world2cam: rho = sum invpol_i t^i with
     t = atan2(z_ocam, hypot(x_ocam, y_ocam)) = angle from the axis - pi / 2) when
     given, otherwise solves ss for rho (bracketed Newton). Valid: rho below the
-    first radius where the angle from the axis, atan2(rho, -ss(rho)), stops growing.
+    first radius where the angle from the axis, atan2(rho, -ss(rho)), stops growing;
+    with ``invpol``, also where its radius agrees with ss within
+    :data:`INVPOL_TOL_PX` (so an extrapolated invpol cannot put rays from beyond
+    the calibrated field onto the image).
     """
 
     ss: tuple[float, ...]
@@ -604,6 +611,14 @@ class Scaramuzza:
         valid = _finite_rows(p) & (n > 0) & (alpha <= self.max_angle) & (alpha < math.pi)
         if self.invpol is not None:
             rho = _poly(self.invpol, alpha - math.pi / 2)
+            # invpol is a fit over the calibrated image; where it is extrapolated (rays
+            # beyond the image) it can return anywhere, even inside the image: keep only
+            # radii whose ss ray lies within INVPOL_TOL_PX of the ray projected
+            with np.errstate(invalid="ignore", over="ignore"):
+                inside = np.isfinite(rho) & (rho >= -INVPOL_TOL_PX) & (rho <= self.rho_max)
+                r = np.where(inside, np.abs(rho), 0.0)  # near the axis the fit may dip below 0
+                miss = np.abs(self.angle(r) - alpha)
+                valid &= inside & (miss <= INVPOL_TOL_PX * np.abs(self._dangle(r)))
         else:
             # start from the equidistant guess rho = -a0 * angle
             guess = -self.ss[0] * alpha
