@@ -552,9 +552,9 @@ class Scaramuzza:
     t = atan2(z_ocam, hypot(x_ocam, y_ocam)) = angle from the axis - pi / 2) when
     given, otherwise solves ss for rho (bracketed Newton). Valid: rho below the
     first radius where the angle from the axis, atan2(rho, -ss(rho)), stops growing;
-    with ``invpol``, also where its radius agrees with ss within
-    :data:`INVPOL_TOL_PX` (so an extrapolated invpol cannot put rays from beyond
-    the calibrated field onto the image).
+    with ``invpol``, also angles up to where its radius agrees with ss within
+    :data:`INVPOL_TOL_PX` (:attr:`max_angle`; so an extrapolated invpol cannot put
+    rays from beyond the calibrated field onto the image).
     """
 
     ss: tuple[float, ...]
@@ -603,7 +603,26 @@ class Scaramuzza:
 
     @cached_property
     def max_angle(self) -> float:
-        return float(self.angle(np.array([self.rho_max]))[0])
+        """Up to where the angle grows with rho; with ``invpol``, also where it agrees with ss.
+
+        invpol is a fit over the calibrated image; extrapolated (rays beyond the
+        image) it can return any radius, even one inside the image. The limit is the
+        first angle (on a 0.05-degree grid) where its radius strays more than
+        :data:`INVPOL_TOL_PX` from the ss polynomial's.
+        """
+        limit = float(self.angle(np.array([self.rho_max]))[0])
+        if self.invpol is None:
+            return limit
+        alpha = np.linspace(0.0, limit, max(2, int(math.degrees(limit) / 0.05) + 1))
+        rho, ok = solve_increasing(
+            self.angle, self._dangle, alpha, self.rho_max, x0=-self.ss[0] * alpha
+        )
+        with np.errstate(invalid="ignore", over="ignore"):
+            ok &= np.abs(_poly(self.invpol, alpha - math.pi / 2) - rho) <= INVPOL_TOL_PX
+        bad = np.flatnonzero(~ok)
+        if bad.size == 0:
+            return limit
+        return float(alpha[bad[0] - 1]) if bad[0] > 0 else 0.0
 
     def project(self, xyz: ArrayLike) -> tuple[FloatArray, BoolArray]:
         p = _points(xyz)
@@ -611,14 +630,6 @@ class Scaramuzza:
         valid = _finite_rows(p) & (n > 0) & (alpha <= self.max_angle) & (alpha < math.pi)
         if self.invpol is not None:
             rho = _poly(self.invpol, alpha - math.pi / 2)
-            # invpol is a fit over the calibrated image; where it is extrapolated (rays
-            # beyond the image) it can return anywhere, even inside the image: keep only
-            # radii whose ss ray lies within INVPOL_TOL_PX of the ray projected
-            with np.errstate(invalid="ignore", over="ignore"):
-                inside = np.isfinite(rho) & (rho >= -INVPOL_TOL_PX) & (rho <= self.rho_max)
-                r = np.where(inside, np.abs(rho), 0.0)  # near the axis the fit may dip below 0
-                miss = np.abs(self.angle(r) - alpha)
-                valid &= inside & (miss <= INVPOL_TOL_PX * np.abs(self._dangle(r)))
         else:
             # start from the equidistant guess rho = -a0 * angle
             guess = -self.ss[0] * alpha
@@ -637,7 +648,10 @@ class Scaramuzza:
         b = (self.c * dc - self.e * dr) / det
         rho = np.hypot(a, b)
         ok = np.isfinite(rho) & (rho <= self.rho_max)
-        return _pack_rays(b, a, -_poly(self.ss, rho), ok)
+        z = -_poly(self.ss, rho)
+        if self.invpol is not None:  # the same field as project
+            ok &= np.arctan2(rho, z) <= self.max_angle
+        return _pack_rays(b, a, z, ok)
 
 
 # ---------------------------------------------------------------- double sphere, EUCM
