@@ -5,8 +5,9 @@ Steps (docs/fisheye-calibration.md):
 1. :func:`detect_corners`: ``cv2.findChessboardCornersSB`` refined by ``cv2.cornerSubPix``,
    or ``cv2.aruco.CharucoDetector`` for a ChArUco board.
 2. :func:`calibrate_views` runs the solver robustly: cv2.fisheye with
-   ``CALIB_RECOMPUTE_EXTRINSIC | CALIB_CHECK_COND | CALIB_FIX_SKEW`` (a view whose
-   extrinsic Jacobian is ill-conditioned is named by OpenCV, dropped, and the solver rerun),
+   ``CALIB_RECOMPUTE_EXTRINSIC | CALIB_CHECK_COND | CALIB_FIX_SKEW`` (when a view's pose
+   is ill-conditioned, the view whose removal lets the solver converge is dropped and the
+   solver rerun: OpenCV's message often names a victim, not the culprit),
    cv2.omnidir with ``CALIB_FIX_SKEW`` (views its initialisation rejects are the ones missing
    from its ``idx``); then a view whose own reprojection RMS exceeds
    ``max(OUTLIER_MIN_PX, OUTLIER_FACTOR * median)`` is dropped (a misdetected board) and the
@@ -255,6 +256,53 @@ class _Solve:
 _COND = re.compile(r"input array (\d+)")
 
 
+def _fisheye_calibrate(
+    obj: list[FloatArray], img: list[FloatArray], idx: list[int], size: tuple[int, int]
+) -> tuple[float, FloatArray, FloatArray, list[FloatArray], list[FloatArray]]:
+    rms, k, d, rvecs, tvecs = cv2.fisheye.calibrate(
+        [obj[i].reshape(1, -1, 3) for i in idx],
+        [img[i].reshape(1, -1, 2) for i in idx],
+        size,
+        np.zeros((3, 3)),
+        np.zeros(4),
+        flags=KB4_FLAGS,
+        criteria=CRITERIA,
+    )
+    return (
+        float(rms),
+        np.asarray(k, np.float64),
+        np.asarray(d, np.float64).ravel(),
+        [np.ravel(r) for r in rvecs],
+        [np.ravel(t) for t in tvecs],
+    )
+
+
+def _ill_conditioned(
+    obj: list[FloatArray], img: list[FloatArray], idx: list[int], size: tuple[int, int], named: int
+) -> tuple[int, str]:
+    """The position in ``idx`` of the view that makes CALIB_CHECK_COND fail, and why.
+
+    OpenCV's message names the view whose pose turned ill-conditioned, which is often not the
+    culprit: one bad view (a tiny, far board) spoils the intrinsics and then another view's
+    pose fails. So each view is left out in turn; the one whose removal lets the solver
+    converge with the lowest RMS is it. If no single removal helps, the named view goes.
+    """
+    best: tuple[float, int] | None = None
+    if len(idx) - 1 >= MIN_VIEWS:
+        for j in range(len(idx)):
+            try:
+                rms = _fisheye_calibrate(obj, img, idx[:j] + idx[j + 1 :], size)[0]
+            except cv2.error:
+                continue
+            if best is None or rms < best[0]:
+                best = (rms, j)
+    if best is not None:
+        return best[1], (
+            "ill-conditioned (cv2.fisheye CALIB_CHECK_COND fails with it and converges without it)"
+        )
+    return named, "ill-conditioned pose (named by cv2.fisheye CALIB_CHECK_COND)"
+
+
 def _run_kb4(
     obj: list[FloatArray], img: list[FloatArray], size: tuple[int, int]
 ) -> tuple[LensModel, list[FloatArray], list[FloatArray], list[int], dict[int, str]]:
@@ -264,26 +312,16 @@ def _run_kb4(
         if len(idx) < MIN_VIEWS:
             return _few(idx, dropped)
         try:
-            _, k, d, rvecs, tvecs = cv2.fisheye.calibrate(
-                [obj[i].reshape(1, -1, 3) for i in idx],
-                [img[i].reshape(1, -1, 2) for i in idx],
-                size,
-                np.zeros((3, 3)),
-                np.zeros(4),
-                flags=KB4_FLAGS,
-                criteria=CRITERIA,
-            )
+            _, km, dd, rvecs, tvecs = _fisheye_calibrate(obj, img, idx, size)
         except cv2.error as exc:
             m = _COND.search(str(exc))
             if m is None or int(m.group(1)) >= len(idx):
                 raise CalibrationError(
                     f"cv2.fisheye.calibrate failed: {_first_line(exc)}"
                 ) from None
-            bad = idx.pop(int(m.group(1)))
-            dropped[bad] = "ill-conditioned pose (cv2.fisheye CALIB_CHECK_COND)"
+            j, why = _ill_conditioned(obj, img, idx, size, int(m.group(1)))
+            dropped[idx.pop(j)] = why
             continue
-        km = np.asarray(k, np.float64)
-        dd = np.asarray(d, np.float64).ravel()
         lens = KannalaBrandt(
             float(km[0, 0]),
             float(km[1, 1]),
@@ -291,7 +329,7 @@ def _run_kb4(
             float(km[1, 2]),
             (float(dd[0]), float(dd[1]), float(dd[2]), float(dd[3])),
         )
-        return lens, [np.ravel(r) for r in rvecs], [np.ravel(t) for t in tvecs], idx, dropped
+        return lens, rvecs, tvecs, idx, dropped
 
 
 def _run_mei(
