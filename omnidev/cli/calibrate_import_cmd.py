@@ -48,7 +48,8 @@ def register_import(csub: Any) -> None:
         "--mount",
         choices=tuple(MOUNTS),
         help="where the optical axis points in omnidev's camera frame (z up): up (default), "
-        "down, forward (+x)",
+        "down, forward (+x); mirror-up / mirror-down for a catadioptric camera calibrated "
+        "with a central model (Mei, OCamCalib), whose model frame is mirror-imaged",
     )
     c.add_argument(
         "--max-angle-deg",
