@@ -112,7 +112,7 @@ def test_rendered_corners_detected_at_their_true_pixels(spec: str) -> None:
     e = np.concatenate(errs)
     rms = float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
     print(f"\n{spec}: {len(e)} corners detected, RMS {rms:.3f} px from the truth")
-    assert rms < (0.1 if pattern.kind == "chessboard" else 0.25)
+    assert rms < 0.1
 
 
 # ---------------------------------------------------------------- acceptance at 0.2 px noise

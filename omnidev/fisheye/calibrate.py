@@ -103,7 +103,9 @@ def detect_corners(image: Image, pattern: Pattern, *, name: str = "") -> Detecti
     A chessboard must be found whole (``cv2.findChessboardCornersSB`` with
     ``CALIB_CB_NORMALIZE_IMAGE | CALIB_CB_EXHAUSTIVE | CALIB_CB_ACCURACY``), then each corner is
     refined by ``cv2.cornerSubPix`` in a window of 0.4 corner spacings (2..7 px half-size).
-    A ChArUco board may be partly visible; fewer than :data:`MIN_CORNERS` corners is None.
+    A ChArUco board may be partly visible; fewer than :data:`MIN_CORNERS` corners is None. Its
+    corners are refined by ``cv2.cornerSubPix`` too, in a window that stays clear of the
+    markers (a refinement that moves a corner by 1 px or more is not taken).
     """
     grey = _grey(image)
     if pattern.kind == "chessboard":
@@ -125,6 +127,21 @@ def detect_corners(image: Image, pattern: Pattern, *, name: str = "") -> Detecti
         return None
     uv = np.asarray(corners, np.float64).reshape(-1, 2)
     idx = np.asarray(ids, np.int64).ravel()
+    # refine inside the marker-free cross around each corner: (square - marker) / 2 of a
+    # square each way (a larger window takes in the markers' edges and pulls the corner)
+    d = np.linalg.norm(uv[:, None] - uv[None], axis=-1)
+    np.fill_diagonal(d, np.inf)
+    spacing = float(np.min(d))
+    half = max(
+        2, math.floor(spacing * (pattern.square_mm - pattern.marker_mm) / (2 * pattern.square_mm))
+    )
+    pts = uv.reshape(-1, 1, 2).astype(np.float32)
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
+    refined = np.asarray(
+        cv2.cornerSubPix(grey, pts, (half, half), (-1, -1), crit), np.float64
+    ).reshape(-1, 2)
+    keep = np.linalg.norm(refined - uv, axis=1) < 1.0
+    uv[keep] = refined[keep]
     return Detection(name, uv, pattern.object_points()[idx])
 
 
