@@ -162,15 +162,50 @@ def separable_rays(
     return None
 
 
+class Scratch:
+    """Recycled float32 and bool buffers for blocks of up to ``rows`` x ``width`` pixels.
+
+    Every block asks for its temporaries in the same order, so after the first
+    block nothing is allocated: fresh (h, W) temporaries per block made glibc
+    return and re-fault the same pages, which cost 5x the arithmetic.
+    """
+
+    def __init__(self, rows: int, width: int) -> None:
+        self.shape = (rows, width)
+        self._f: list[F32] = []
+        self._b: list[BoolArray] = []
+        self._i = self._j = 0
+        self.k = rows
+
+    def start(self, k: int) -> None:
+        """Begin a block of ``k`` rows: all buffers are free again."""
+        self._i = self._j = 0
+        self.k = k
+
+    def f(self) -> F32:
+        """A float32 (k, W) buffer (uninitialised)."""
+        if self._i == len(self._f):
+            self._f.append(np.empty(self.shape, np.float32))
+        self._i += 1
+        return self._f[self._i - 1][: self.k]
+
+    def b(self) -> BoolArray:
+        """A bool (k, W) buffer (uninitialised)."""
+        if self._j == len(self._b):
+            self._b.append(np.empty(self.shape, np.bool_))
+        self._j += 1
+        return self._b[self._j - 1][: self.k]
+
+
 def optical_blocks(
-    rays: SeparableRays, mount: FloatArray, step: int
-) -> Iterator[tuple[slice, F32, F32, F32, F32 | None]]:
+    rays: SeparableRays, mount: FloatArray, step: int, ws: Scratch
+) -> Iterator[tuple[slice, F32, F32, F32, F32]]:
     """Blocks of ``step`` rows: (rows, x, y, z, length) of the rays ``mount @ ray``, float32.
 
-    x, y, z are the (h, W) optical-frame components; the length is (h, W), (1, 1)
-    for unit rays, or None when the view does not give it (:class:`SeparableRays`).
-    The first operand of every broadcast is a contiguous (step, W) tile, which
-    numpy adds much faster than a (1, W) row.
+    x, y, z are the (h, W) optical-frame components in buffers of ``ws`` (valid
+    until the next block); the length is (h, W), or (1, 1) for unit rays. The
+    first operand of every broadcast is a contiguous (step, W) tile, which numpy
+    adds much faster than a (1, W) row.
     """
     h, w = rays.s.shape[1], rays.q.shape[1]
     qm = (mount @ rays.q).astype(np.float32)  # (3, W)
@@ -178,32 +213,42 @@ def optical_blocks(
     step = min(step, h)
     tiles = [np.ascontiguousarray(np.broadcast_to(qm[c], (step, w))) for c in range(3)]
     p = None if rays.p is None else rays.p.astype(np.float32)[:, None]
+    one = np.ones((1, 1), np.float32)
     if rays.norm2 is not None:
         na = rays.norm2[0].astype(np.float32)[:, None]
         ntile = np.ascontiguousarray(np.broadcast_to(rays.norm2[1].astype(np.float32), (step, w)))
     for r0 in range(0, h, step):
         r1 = min(h, r0 + step)
         k = r1 - r0
+        ws.start(k)
         comps: list[F32] = []
         for c in range(3):
-            comp = np.empty((k, w), np.float32)
+            comp = ws.f()
             if p is None:
                 np.add(tiles[c][:k], sm[c, r0:r1, None], out=comp)
             else:
                 np.multiply(tiles[c][:k], p[r0:r1], out=comp)
                 comp += sm[c, r0:r1, None]
             comps.append(comp)
-        n: F32 | None = None
-        if rays.unit:
-            n = np.ones((1, 1), np.float32)
-        elif rays.norm2 is not None:
-            n = _sqrt(ntile[:k] + na[r0:r1])
+        if rays.norm2 is not None:
+            n = ws.f()
+            np.add(ntile[:k], na[r0:r1], out=n)
+            _sqrt(n, n)
+        elif rays.unit:
+            n = one
+        else:
+            n = ws.f()
+            np.multiply(comps[0], comps[0], out=n)
+            n += comps[1] * comps[1]
+            n += comps[2] * comps[2]
+            _sqrt(n, n)
         yield slice(r0, r1), comps[0], comps[1], comps[2], n
 
 
-def _sqrt(a: F32) -> F32:
-    """Elementwise square root of a float32 array (cv2's is twice as fast as numpy's)."""
-    return np.asarray(cv2.sqrt(a), np.float32).reshape(a.shape)
+def _sqrt(a: F32, out: F32) -> None:
+    """out = sqrt(a), float32 (cv2's is twice as fast as numpy's; out may be a)."""
+    if a.size and cv2.sqrt(a, out) is not out:  # cv2 writes into a matching out
+        np.sqrt(a, out=out)
 
 
 # ---------------------------------------------------------------- fast lens formulas
@@ -214,158 +259,203 @@ def _ucm_w(alpha: float) -> float:
     return alpha / (1.0 - alpha) if alpha <= 0.5 else (1.0 - alpha) / alpha
 
 
-def _horner(coeffs: tuple[float, ...], x: F32) -> F32:
-    out = np.full_like(x, coeffs[-1])
-    for c in reversed(coeffs[:-1]):
-        out *= x
-        out += c
-    return out
-
-
-def _axis_angle(x: F32, y: F32, z: F32) -> tuple[F32, F32]:
-    """(hypot(x, y), angle from +z in [0, pi])."""
-    rxy = np.sqrt(x * x + y * y)
-    return rxy, np.arctan2(rxy, z)
-
-
-def _radial_scale(radius: F32, rxy: F32) -> F32:
-    """radius / rxy, 0 where rxy == 0 (the axis: x = y = 0 there anyway)."""
-    out = np.zeros_like(radius)
-    np.divide(radius, rxy, out=out, where=rxy > 0)
-    return out
-
-
-def _pixels(
-    lens_fx: float, lens_fy: float, skew: float, cx: float, cy: float, xd: F32, yd: F32
-) -> tuple[F32, F32]:
-    """u = fx xd + skew yd + cx, v = fy yd + cy, in place where possible."""
-    u = xd * np.float32(lens_fx)
+def _affine(
+    fx: float, fy: float, skew: float, cx: float, cy: float, xd: F32, yd: F32, u: F32, v: F32
+) -> None:
+    """u = fx xd + skew yd + cx, v = fy yd + cy (u, v: outputs; xd is overwritten)."""
+    np.multiply(xd, np.float32(fx), out=u)
     if skew:
-        u += np.float32(skew) * yd
+        np.multiply(yd, np.float32(skew), out=xd)
+        u += xd
     u += np.float32(cx)
-    yd *= np.float32(lens_fy)
-    yd += np.float32(cy)
-    return u, yd
+    np.multiply(yd, np.float32(fy), out=v)
+    v += np.float32(cy)
+
+
+def has_fast_formula(lens: LensModel) -> bool:
+    """Whether :func:`fast_project` handles ``lens`` (else the reference path is used)."""
+    if isinstance(lens, Scaramuzza):
+        return lens.invpol is not None
+    return isinstance(lens, KannalaBrandt | Unified | IdealFisheye | DoubleSphere | EUCM)
 
 
 def fast_project(
-    lens: LensModel, x: F32, y: F32, z: F32, max_angle: float, n: F32 | None = None
-) -> tuple[F32, F32, BoolArray] | None:
-    """Pixels (u, v) and validity of optical-frame rays (x, y, z), any length, float32.
+    lens: LensModel,
+    x: F32,
+    y: F32,
+    z: F32,
+    n: F32,
+    max_angle: float,
+    ws: Scratch,
+    u: F32,
+    v: F32,
+    ok: BoolArray,
+) -> None:
+    """Pixels and validity of optical-frame rays (x, y, z) of lengths n, float32, in place.
 
-    ``max_angle`` (rad) limits the angle from the optical axis (the camera's
-    limit, at most the lens's). ``n``: the rays' lengths if known (broadcastable).
-    The inputs may be overwritten. None for a lens without a fast formula.
+    Writes u, v (pixels) and ok (the lens images the ray within ``max_angle`` rad of
+    the axis; the image border is not checked here). x, y (and buffers of ``ws``)
+    are overwritten; n may be (1, 1) for unit rays. ``lens`` must pass
+    :func:`has_fast_formula`.
     """
-    if isinstance(lens, KannalaBrandt | IdealFisheye) or (
-        isinstance(lens, Scaramuzza) and lens.invpol is not None
-    ):
-        # angle from the axis, then a radius: everything scales x and y by radius / hypot(x, y)
-        rxy2 = x * x
-        rxy2 += y * y
-        rxy = _sqrt(rxy2)
-        theta = np.arctan2(rxy, z)
-        ok = theta <= np.float32(min(max_angle, lens.max_angle))
-        ok &= theta < np.float32(math.pi)
-        ok &= (rxy > 0) | (z > 0)
+    if isinstance(lens, KannalaBrandt | IdealFisheye | Scaramuzza):
+        # angle from the axis, then a radius: x and y scale by radius / hypot(x, y)
+        rxy, t = ws.f(), ws.f()
+        np.multiply(x, x, out=rxy)
+        np.multiply(y, y, out=t)
+        rxy += t
+        _sqrt(rxy, rxy)
+        theta = ws.f()
+        np.arctan2(rxy, z, out=theta)
+        limit = min(max_angle, lens.max_angle)
+        if limit < math.pi:
+            np.less_equal(theta, np.float32(limit), out=ok)
+        else:
+            np.less(theta, np.float32(math.pi), out=ok)  # the axis behind has no azimuth
+        np.maximum(rxy, np.float32(1e-30), out=rxy)  # at the axis radius = 0: scale 0, not NaN
+        radius = t
         if isinstance(lens, KannalaBrandt):
+            th2 = ws.f()
+            np.multiply(theta, theta, out=th2)
             k1, k2, k3, k4 = lens.k
-            radius = _horner((1.0, k1, k2, k3, k4), theta * theta)
+            radius.fill(k4)
+            for c in (k3, k2, k1, 1.0):
+                radius *= th2
+                radius += np.float32(c)
             radius *= theta
         elif isinstance(lens, IdealFisheye):
             theta[~ok] = 0.0
-            radius = lens.radius(theta).astype(np.float32)
+            radius[...] = lens.radius(theta.astype(np.float64))
         else:
-            assert isinstance(lens, Scaramuzza) and lens.invpol is not None
+            assert lens.invpol is not None
             theta -= np.float32(math.pi / 2)
-            radius = _horner(tuple(lens.invpol), theta)
-        sc = _radial_scale(radius, rxy)
-        x *= sc
-        y *= sc
+            radius.fill(lens.invpol[-1])
+            for c in reversed(lens.invpol[:-1]):
+                radius *= theta
+                radius += np.float32(c)
+        radius /= rxy
+        x *= radius
+        y *= radius
         if isinstance(lens, KannalaBrandt):
-            u, v = _pixels(lens.fx, lens.fy, lens.skew, lens.cx, lens.cy, x, y)
+            _affine(lens.fx, lens.fy, lens.skew, lens.cx, lens.cy, x, y, u, v)
         elif isinstance(lens, IdealFisheye):
-            u, v = _pixels(1.0, lens.aspect, 0.0, lens.cx, lens.cy, x, y)
+            _affine(1.0, lens.aspect, 0.0, lens.cx, lens.cy, x, y, u, v)
         else:
-            assert isinstance(lens, Scaramuzza)
-            # OCamCalib sensor (a, b) = (optical y, optical x); row = c a + d b + xc
-            u = lens.e * y
+            # OCamCalib sensor (a, b) = (optical y, optical x): row = c a + d b + xc,
+            # col = e a + b + yc
+            np.multiply(y, np.float32(lens.e), out=u)
             u += x
             u += np.float32(lens.yc)
-            v = lens.c * y
-            v += lens.d * x
+            np.multiply(y, np.float32(lens.c), out=v)
+            x *= np.float32(lens.d)
+            v += x
             v += np.float32(lens.xc)
-        return u, v, ok
+        return
+    t = ws.f()
     if isinstance(lens, Unified):
-        if n is None:
-            n = _sqrt(x * x + y * y + z * z)
         # valid: z > -w |p| (w = xi for xi <= 1, 1 / xi beyond: there the image folds);
         # it implies z + xi |p| > 0 and |p| > 0
-        den = np.float32(lens.xi) * n + z
-        ok = den > 0 if lens.xi <= 1.0 else np.float32(1.0 / lens.xi) * n + z > 0
+        den = ws.f()
+        np.multiply(n, np.float32(lens.xi), out=den)
+        den += z
+        if lens.xi <= 1.0:
+            np.greater(den, 0.0, out=ok)
+        else:
+            np.multiply(n, np.float32(1.0 / lens.xi), out=t)
+            t += z
+            np.greater(t, 0.0, out=ok)
         if max_angle < math.pi:
-            ok &= z >= np.float32(math.cos(max_angle)) * n
-        inv = np.float32(1.0) / den
-        x *= inv  # x, y: normalized undistorted coordinates
-        y *= inv
-        xx = x * x
-        yy = y * y
-        r2 = xx + yy
+            _within_angle(z, n, max_angle, t, ws.b(), ok)
+        np.divide(np.float32(1.0), den, out=den)
+        x *= den  # x, y: normalized undistorted coordinates
+        y *= den
+        xx, yy, r2 = ws.f(), ws.f(), ws.f()
+        np.multiply(x, x, out=xx)
+        np.multiply(y, y, out=yy)
+        np.add(xx, yy, out=r2)
         if math.isfinite(lens.r_max):
-            ok &= r2 <= np.float32(lens.r_max**2)
+            bb = ws.b()
+            np.less_equal(r2, np.float32(lens.r_max**2), out=bb)
+            ok &= bb
         k1, k2, p1, p2 = lens.k1, lens.k2, lens.p1, lens.p2
-        if p1 or p2:
-            xy2 = x * y
-            xy2 *= 2.0
-            tx = r2 + 2.0 * xx
-            tx *= p2
-            tx += p1 * xy2
-            ty = r2 + 2.0 * yy
-            ty *= p1
-            ty += p2 * xy2
+        tangential = bool(p1 or p2)
+        if tangential:
+            xy2 = ws.f()
+            np.multiply(x, y, out=xy2)
+            xy2 *= np.float32(2.0)
+            xx *= np.float32(2.0)  # xx -> p2 (r2 + 2 x^2) + p1 2 x y
+            xx += r2
+            xx *= np.float32(p2)
+            np.multiply(xy2, np.float32(p1), out=t)
+            xx += t
+            yy *= np.float32(2.0)  # yy -> p1 (r2 + 2 y^2) + p2 2 x y
+            yy += r2
+            yy *= np.float32(p1)
+            np.multiply(xy2, np.float32(p2), out=t)
+            yy += t
         if k1 or k2:
-            rad = k2 * r2
-            rad += k1
+            rad = den
+            np.multiply(r2, np.float32(k2), out=rad)
+            rad += np.float32(k1)
             rad *= r2
-            rad += 1.0
+            rad += np.float32(1.0)
             x *= rad
             y *= rad
-        if p1 or p2:
-            x += tx
-            y += ty
-        u, v = _pixels(lens.fx, lens.fy, lens.skew, lens.cx, lens.cy, x, y)
-        return u, v, ok
+        if tangential:
+            x += xx
+            y += yy
+        _affine(lens.fx, lens.fy, lens.skew, lens.cx, lens.cy, x, y, u, v)
+        return
+    # double sphere and EUCM: x, y divided by a denominator m
+    r2, m = ws.f(), ws.f()
+    np.multiply(x, x, out=r2)
+    np.multiply(y, y, out=t)
+    r2 += t
     if isinstance(lens, DoubleSphere):
-        r2 = x * x + y * y
-        d1 = np.sqrt(r2 + z * z) if n is None else n
-        zz = lens.xi * d1 + z
-        m = lens.alpha * np.sqrt(r2 + zz * zz) + (1 - lens.alpha) * zz
+        zz = ws.f()
+        np.multiply(n, np.float32(lens.xi), out=zz)
+        zz += z  # xi d1 + z
+        np.multiply(zz, zz, out=m)
+        m += r2
+        _sqrt(m, m)
+        m *= np.float32(lens.alpha)
+        zz *= np.float32(1 - lens.alpha)
+        m += zz
         w1 = _ucm_w(lens.alpha)
-        w2 = (w1 + lens.xi) / math.sqrt(2 * w1 * lens.xi + lens.xi**2 + 1)
-        ok = (z > -w2 * d1) & (m > 0)
-        if max_angle < math.pi:
-            ok &= z >= np.float32(math.cos(max_angle)) * d1
-        inv = np.float32(1.0) / m
-        x *= inv
-        y *= inv
-        u, v = _pixels(lens.fx, lens.fy, 0.0, lens.cx, lens.cy, x, y)
-        return u, v, ok
-    if isinstance(lens, EUCM):
-        r2 = x * x + y * y
-        d = np.sqrt(lens.beta * r2 + z * z)
-        m = lens.alpha * d + (1 - lens.alpha) * z
-        ok = (z > -_ucm_w(lens.alpha) * d) & (m > 0)
-        if max_angle < math.pi:
-            ok &= z >= np.float32(math.cos(max_angle)) * (np.sqrt(r2 + z * z) if n is None else n)
-        inv = np.float32(1.0) / m
-        x *= inv
-        y *= inv
-        u, v = _pixels(lens.fx, lens.fy, 0.0, lens.cx, lens.cy, x, y)
-        return u, v, ok
-    return None
+        w = (w1 + lens.xi) / math.sqrt(2 * w1 * lens.xi + lens.xi**2 + 1)
+        np.multiply(n, np.float32(w), out=t)  # valid: z > -w2 d1
+    else:
+        assert isinstance(lens, EUCM)
+        d = ws.f()
+        np.multiply(r2, np.float32(lens.beta), out=d)
+        np.multiply(z, z, out=t)
+        d += t
+        _sqrt(d, d)
+        np.multiply(d, np.float32(lens.alpha), out=m)
+        np.multiply(z, np.float32(1 - lens.alpha), out=t)
+        m += t
+        np.multiply(d, np.float32(_ucm_w(lens.alpha)), out=t)  # valid: z > -w d
+    t += z
+    np.greater(t, 0.0, out=ok)
+    bb = ws.b()
+    np.greater(m, 0.0, out=bb)
+    ok &= bb
+    if max_angle < math.pi:
+        _within_angle(z, n, max_angle, t, bb, ok)
+    np.divide(np.float32(1.0), m, out=m)
+    x *= m
+    y *= m
+    _affine(lens.fx, lens.fy, 0.0, lens.cx, lens.cy, x, y, u, v)
 
 
-CHUNK = 32768
+def _within_angle(z: F32, n: F32, max_angle: float, t: F32, bb: BoolArray, ok: BoolArray) -> None:
+    """ok &= (angle from the axis <= max_angle), i.e. z >= cos(max_angle) |p|."""
+    np.multiply(n, np.float32(math.cos(max_angle)), out=t)
+    np.greater_equal(z, t, out=bb)
+    ok &= bb
+
+
+CHUNK = 65536
 """Pixels per block of rows in :func:`view_maps`: the block's float32 temporaries stay in cache."""
 
 
@@ -379,9 +469,11 @@ def view_maps(camera: FisheyeLike, view: View) -> Maps:
     """
     lens = camera.lens
     limit = math.pi if camera.max_angle_deg is None else math.radians(camera.max_angle_deg)
-    sep = separable_rays(view, camera.default_elevation_deg())
-    one = np.ones((1, 1), np.float32)
-    if sep is None or fast_project(lens, one, one, one, limit) is None:
+    if not has_fast_formula(lens):
+        return reference_maps(camera, view)
+    default_band = camera.default_elevation_deg() if isinstance(view, Panorama) else None
+    sep = separable_rays(view, default_band)
+    if sep is None:
         return reference_maps(camera, view)
     mount = np.asarray(camera.mount, np.float64)
     h, w = view.height, view.width
@@ -389,24 +481,29 @@ def view_maps(camera: FisheyeLike, view: View) -> Maps:
     map_x = np.empty((h, w), np.float32)
     map_y = np.empty((h, w), np.float32)
     valid = np.empty((h, w), np.bool_)
-    step = max(1, CHUNK // w)
-    invalid = np.full((min(step, h), w), INVALID, np.float32)
+    step = min(h, max(1, CHUNK // w))
+    ws = Scratch(step, w)
+    invalid = np.full((step, w), INVALID, np.float32)
+    # a finite view may contain the viewpoint itself: that point has no direction
+    maybe_zero = sep.norm2 is not None and sep.norm2[0].min() + sep.norm2[1].min() <= 0
     with np.errstate(all="ignore"):
-        for rows, x, y, z, n in optical_blocks(sep, mount, step):
-            res = fast_project(lens, x, y, z, limit, n)
-            assert res is not None
-            u, v, ok = res
-            ok &= u >= -0.5
-            ok &= u <= sw - 0.5
-            ok &= v >= -0.5
-            ok &= v <= sh - 0.5
-            bad = (~ok).view(np.uint8)
+        for rows, x, y, z, n in optical_blocks(sep, mount, step, ws):
+            u, v, ok = map_x[rows], map_y[rows], valid[rows]
+            fast_project(lens, x, y, z, n, limit, ws, u, v, ok)
+            bb = ws.b()
+            for arr, lo, hi in ((u, -0.5, sw - 0.5), (v, -0.5, sh - 0.5)):
+                np.greater_equal(arr, np.float32(lo), out=bb)
+                ok &= bb
+                np.less_equal(arr, np.float32(hi), out=bb)
+                ok &= bb
+            if maybe_zero:
+                np.greater(n, 0.0, out=bb)
+                ok &= bb
+            np.logical_not(ok, out=bb)
+            bad = bb.view(np.uint8)
             k = u.shape[0]
-            cv2.copyTo(invalid[:k], bad, u)  # in place: u = INVALID where bad
+            cv2.copyTo(invalid[:k], bad, u)  # in place: u = INVALID where not ok
             cv2.copyTo(invalid[:k], bad, v)
-            map_x[rows] = u
-            map_y[rows] = v
-            valid[rows] = ok
     return Maps(map_x, map_y, valid, (sw, sh))
 
 
