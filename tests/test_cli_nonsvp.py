@@ -54,7 +54,7 @@ def test_calibrate_errors(tmp_path, capsys):
     blank = tmp_path / "blank.png"
     cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
     argv = [
-        "calibrate", "nonsvp-hyper", "--image", str(blank), "--mirror", "20.187,30,29",
+        "calibrate", "nonsvp-hyper", "--image", str(blank), "--mirror", "28.3646,32.0661,29",
         "--lens", "2.9,3.2,2.4", "--size", "640x480", "-o", str(tmp_path / "c.yml"),
     ]  # fmt: skip
     assert main(argv) == 2

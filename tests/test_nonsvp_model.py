@@ -22,6 +22,7 @@ from omnidev.nonsvp.model import (
     ideal_to_distorted,
     ideal_to_pixel,
     image_point_in_mirror,
+    mirror_for_aligned_lens,
     mirror_to_camera,
     mirror_to_world,
     pixel_to_ideal,
@@ -41,6 +42,10 @@ def test_dissertation_camera_numbers() -> None:
     assert MIR.c == pytest.approx(math.sqrt(MIR.a**2 + MIR.b**2), rel=1e-15)
     # the rim lies on the surface (eq. 2.19 at r = m gives z = d = b + h - c)
     assert float(MIR.surface_z(MIR.m, 0.0)) == pytest.approx(MIR.d, abs=1e-9)
+    # the mirror chosen for it: rim radius 29 mm seen from O_m 6 degrees above the horizon
+    assert MIR.m == 29.0
+    assert math.degrees(math.atan2(MIR.d, MIR.m)) == pytest.approx(6.0, abs=1e-12)
+    assert (MIR.a, MIR.b) == pytest.approx((28.36457171909808, 32.06605393760611), abs=1e-9)
     # the rim circle images inside the 640 x 480 frame, with margin
     th = np.linspace(0.0, 2.0 * np.pi, 720, endpoint=False)
     rim = np.column_stack([MIR.m * np.cos(th), MIR.m * np.sin(th), np.full_like(th, MIR.d)])
@@ -161,6 +166,27 @@ def test_bad_mirror_parameters() -> None:
         Mirror(float("nan"), 30.0, 10.0, 20.0)
     with pytest.raises(CalibrationError):
         Lens(2.9, (3.2, 2.4), (640, 0))
+
+
+def test_mirror_for_aligned_lens() -> None:
+    """The closed form against the two defining equations, over a range of choices."""
+    for tz, m, e in [
+        (88.67, 29.0, 6.0),
+        (88.67, 28.0, 5.0),
+        (60.0, 20.0, -10.0),
+        (120.0, 40.0, 30.0),
+    ]:
+        mir = mirror_for_aligned_lens(tz, m, e)
+        assert mir.b + mir.h + mir.c == pytest.approx(tz, abs=1e-9)
+        assert math.degrees(math.atan2(mir.d, mir.m)) == pytest.approx(e, abs=1e-9)
+        assert 0.0 < mir.b < mir.c and mir.h > 0.0
+    # an earlier helper's proposal (a, b rounded to 1e-3 mm)
+    p = mirror_for_aligned_lens(88.67, 28.0, 5.0)
+    assert (p.a, p.b) == pytest.approx((28.393, 32.439), abs=6e-4)
+    for bad in [(88.67, 29.0, 90.0), (88.67, -1.0, 6.0), (10.0, 29.0, 45.0)]:
+        with pytest.raises(CalibrationError) as exc:
+            mirror_for_aligned_lens(*bad)
+        _one_line(exc)
 
 
 def test_pose_inside_the_mirror_is_refused() -> None:

@@ -4,6 +4,7 @@ reflection, independently of omnidev.nonsvp's equations)."""
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import cv2
@@ -80,7 +81,7 @@ def test_backprojected_view_and_chapter_3_interpolation():
     view = sim_nonsvp.dissertation_planes(truth.shape[1], truth.shape[0])["side_0"]
     raw, filled = backprojected_view(cam, omni, view)
     m = mask & filled
-    assert filled.mean() > 0.05
+    assert filled.mean() > 0.2  # measured 26 % (10 % with the earlier 29.4-degree-rim mirror)
     p_filled = psnr(raw, truth, m)
     edges = backprojected_edges(cam, omni, view)
     holes = mask & ~filled
@@ -95,9 +96,10 @@ def test_backprojected_view_and_chapter_3_interpolation():
           f" unfilled pixels: {line} dB")  # fmt: skip
     for v in results.values():
         assert np.array_equal(v[filled], raw[filled])  # filled pixels untouched
-    assert p_filled >= 18.0
+    assert p_filled >= 26.0  # measured 28.33 dB
 
 
+@functools.cache
 def quality_rows(name: str, pose: str, size: tuple[int, int]) -> dict[str, dict[str, float]]:
     """PSNR / SSIM of every method on every view of one fixture (means over the views)."""
     from omnidev.metrics import psnr as m_psnr
@@ -107,12 +109,14 @@ def quality_rows(name: str, pose: str, size: tuple[int, int]) -> dict[str, dict[
     rim = cv2.imread(str(FIX / name / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
     vs, us = np.nonzero(rim)
     sums: dict[str, list[tuple[float, float]]] = {}
+    fills: dict[str, float] = {}
     for view_name in ("top", "side_0", "side_1", "side_2", "side_3"):
         omni, truth, mask = load(name, view_name)
         view = sim_nonsvp.dissertation_planes(truth.shape[1], truth.shape[0])[view_name]
         mx, my, ok = dense_maps(cam, view)
         sx, sy, sok = svp_maps(cam, view, (float(us.mean()), float(vs.mean())))
         raw, filled = backprojected_view(cam, omni, view)
+        fills[view_name] = float(filled.mean())
         edges = backprojected_edges(cam, omni, view)
         out = {
             "SVP assumption (eq. 2.1)": cv2.remap(omni, sx, sy, cv2.INTER_LINEAR),
@@ -127,10 +131,12 @@ def quality_rows(name: str, pose: str, size: tuple[int, int]) -> dict[str, dict[
         m = mask & ok & sok
         for k, img in out.items():
             sums.setdefault(k, []).append((m_psnr(img, truth, m), m_ssim(img, truth, m)))
-    return {
+    rows = {
         k: {"psnr": float(np.mean([p for p, _ in v])), "ssim": float(np.mean([s for _, s in v]))}
         for k, v in sums.items()
     }
+    rows["back-projection fill"] = fills
+    return rows
 
 
 @pytest.mark.parametrize("name,pose,size", CASES, ids=[c[0] for c in CASES])
@@ -140,10 +146,28 @@ def test_quality_table(name, pose, size):
     SVP assumption; edge-preserving vs 4NN is reported (over all pixels the dissertation's
     claim does not hold here: see docs/nonsvp-interpolation.md)."""
     rows = quality_rows(name, pose, size)
+    rows = dict(rows)
+    fills = rows.pop("back-projection fill")
     print(f"\n{name}: method, PSNR dB, SSIM (mean over top + 4 side views)")
     for k, v in rows.items():
         print(f"  {k:<28} {v['psnr']:6.2f}  {v['ssim']:.3f}")
+    print("  back-projection fills " + ", ".join(f"{k} {100 * v:.1f} %" for k, v in fills.items()))
     dense = rows["dense maps"]
     assert all(dense["psnr"] >= v["psnr"] for v in rows.values())
     for k in ("back-projection + 4NN", "+ two-layered", "+ edge-preserving"):
-        assert rows[k]["psnr"] > rows["SVP assumption (eq. 2.1)"]["psnr"] + 3.0
+        assert rows[k]["psnr"] > rows["SVP assumption (eq. 2.1)"]["psnr"] + 5.0  # measured >= 5.58
+    # the mirror puts its rim 6 degrees above the horizon: measured 22.6-27.4 % per view
+    assert all(0.2 < v < 0.3 for v in fills.values()), fills
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="measured on the fixtures' views: back-projection + 4NN leads + edge-preserving by "
+    "1.22 dB / 0.043 SSIM (dissertation pose, 640x480) and 1.29 dB / 0.025 (large, 1280x960) "
+    "in the mean over the five views; see docs/results.md and docs/nonsvp-interpolation.md",
+)
+@pytest.mark.parametrize("name,pose,size", CASES, ids=[c[0] for c in CASES])
+def test_quality_edge_preserving_beats_4nn(name, pose, size):
+    """The issue's acceptance (edge-preserving beats 4NN), on the view quality table."""
+    rows = quality_rows(name, pose, size)
+    assert rows["+ edge-preserving"]["psnr"] > rows["back-projection + 4NN"]["psnr"]

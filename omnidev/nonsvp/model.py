@@ -80,6 +80,7 @@ __all__ = [
     "ideal_to_distorted",
     "ideal_to_pixel",
     "image_point_in_mirror",
+    "mirror_for_aligned_lens",
     "mirror_to_base",
     "mirror_to_camera",
     "mirror_to_world",
@@ -559,35 +560,75 @@ def ideal_to_pixel(lens: Lens, uv_ideal: ArrayLike) -> tuple[FloatArray, BoolArr
 # ---------------------------------------------------------------------------
 # the dissertation's camera
 
-_DISS_A = 20.18708377370789  # mm, solved below
-_DISS_B = 30.0  # mm
-_DISS_M = 29.0  # mm
+_DISS_TZ = 88.67  # mm, the dissertation's T_z
+_DISS_M = 29.0  # mm, rim radius
+_DISS_RIM_ELEVATION_DEG = 6.0  # rim seen from O_m this far above the horizon
+
+
+def mirror_for_aligned_lens(t_z: float, m: float, rim_elevation_deg: float) -> Mirror:
+    """The hyperbolic mirror with b + h + c = ``t_z`` (mm) whose rim of radius ``m`` (mm) is
+    seen from O_m ``rim_elevation_deg`` above the horizon (closed form).
+
+    With the lens at the second focus (0, 0, -2c) and the base plane at d = b + h - c,
+    the lens-to-rim distance is b + h + c. The rim elevation fixes d = m tan(e), so
+    c = (t_z - d) / 2 and b + h = Z = (t_z + d) / 2. The rim on the surface,
+    Z^2 / b^2 - m^2 / a^2 = 1 with a^2 = c^2 - b^2, is a quadratic in b^2:
+    b^4 - (Z^2 + c^2 + m^2) b^2 + Z^2 c^2 = 0. It is negative at b^2 = c^2 (value
+    -m^2 c^2), so one root lies below c^2 and one above; a > 0 needs the smaller.
+
+    >>> mir = mirror_for_aligned_lens(88.67, 29.0, 6.0)
+    >>> round(mir.a, 4), round(mir.b, 4), round(mir.b + mir.h + mir.c, 9)
+    (28.3646, 32.0661, 88.67)
+    >>> round(math.degrees(math.atan2(mir.d, mir.m)), 9)
+    6.0
+    """
+    tz, m_ = _finite_positive("T_z", t_z), _finite_positive("mirror m", m)
+    e = math.radians(float(rim_elevation_deg))
+    if not -math.pi / 2 < e < math.pi / 2:
+        raise CalibrationError(
+            f"rim elevation must lie in (-90, 90) degrees, got {rim_elevation_deg}"
+        )
+    d = m_ * math.tan(e)
+    c, z = (tz - d) / 2.0, (tz + d) / 2.0
+    if c <= 0.0 or z <= 0.0:
+        raise CalibrationError(f"no mirror: T_z = {tz} mm is too short for the rim elevation")
+    s = z * z + c * c + m_ * m_
+    b2 = 2.0 * z * z * c * c / (s + math.sqrt(s * s - 4.0 * z * z * c * c))  # the smaller root
+    return Mirror.from_rim(math.sqrt(c * c - b2), math.sqrt(b2), m_)
+
 
 DISSERTATION_CAMERA = NonSvpCamera(
-    mirror=Mirror.from_rim(_DISS_A, _DISS_B, _DISS_M),
+    mirror=mirror_for_aligned_lens(_DISS_TZ, _DISS_M, _DISS_RIM_ELEVATION_DEG),
     lens=Lens(f=2.9, sensor=(3.2, 2.4), size=(640, 480), kappa=0.0),
-    pose=Pose(pitch=0.013, yaw=0.035, tilt=0.007, T=(-2.99, 0.96, 88.67)),
+    pose=Pose(pitch=0.013, yaw=0.035, tilt=0.007, T=(-2.99, 0.96, _DISS_TZ)),
 )
 """The camera of dissertation secs. 2.3.2 / 2.5.1, with a mirror chosen to fit it.
 
 Given (sec. 2.5.1): T = (-2.99, 0.96, 88.67) mm; pitch, yaw, tilt = (0.013, 0.035,
 0.007) rad; kappa = 0; f = 2.9 mm; 3.2 x 2.4 mm sensor; 640 x 480 px. The
-dissertation does not give the mirror. Chosen here:
+dissertation does not give the mirror. Chosen here (docs/nonsvp.md, "The mirror
+of the fixtures"):
 
 - aligned, the lens centre would sit at the second focus: eq. 2.16 with
   T_x = T_y = 0 gives z_cw = -T_z + b + h - c = -2c, so **b + h + c = T_z = 88.67**;
-- **b = 30 mm, m = 29 mm** (rim radius): the rim lies T_z = 88.67 mm in front of
-  the lens, so its image radius is f m / T_z * S = 2.9 * 29 / 88.67 * 200 =
-  189.7 px, which leaves ~50 px of margin in the 480-px height for the ~1-px
-  shift of this pose (with eq. 2.13's pose the tilt of 0.035 rad towards the
-  axis nearly cancels the 2.99 mm offset: the mirror centre images within 2 px
-  of the image centre);
-- the rim on the surface, b sqrt(1 + m^2 / a^2) = b + h, together with
-  b + h + c = 88.67 leaves one equation in a: b sqrt(1 + m^2 / a^2) +
-  sqrt(a^2 + b^2) = 88.67, solved by bisection: **a = 20.18708377370789 mm**
-  (the smaller of its two roots; the other puts the rim below the focus);
-- hence c = 36.15962 mm, h = 22.51038 mm, d = b + h - c = 16.35076 mm: the rim
-  is seen from O_m at atan(d / m) = 29.4 degrees above the horizon (the
-  asymptotes are at atan(b / a) = 56.1 degrees from the axis), and the tip at
-  c - b = 6.160 mm from O_m.
+- **m = 29 mm** (rim radius): the rim lies T_z = 88.67 mm in front of the lens,
+  so its image radius is f m / T_z * S = 2.9 * 29 / 88.67 * 200 = 189.7 px
+  (79 % of the half-height); the calibration ring's marks (sec. 2.3.2, out to
+  m + 5 mm) image out to 222.4 px, which still leaves ~15 px in the 480-px
+  height (with eq. 2.13's pose the tilt of 0.035 rad towards the axis nearly
+  cancels the 2.99 mm offset: the mirror centre images within 2 px of the image
+  centre). m = 30 would leave the marks 9 px, m = 32 would cut them;
+- **the rim 6 degrees above the horizon** seen from O_m (d = m tan 6 deg =
+  3.04802 mm): the views of sec. 2.5.1 lie below the horizon (the side planes
+  from z = 0 down), so the omni-image is spent there; 6 degrees keeps every
+  azimuth of the rim above the horizon at the larger misalignment too
+  (:data:`omnidev.sim.nonsvp.LARGE_POSE`: the incident rays at the rim are 1.4 to
+  9.7 degrees up; at this pose 4.1 to 7.8);
+- these three fix the mirror (:func:`mirror_for_aligned_lens`):
+  **a = 28.36457 mm, b = 32.06605 mm**, c = 42.81099 mm, h = 13.79296 mm,
+  d = b + h - c = 3.04802 mm; the tip is c - b = 10.745 mm from O_m, the
+  asymptotes rise atan(b / a) = 48.5 degrees from the base plane.
+
+An earlier choice (b = 30, m = 29, a = 20.187 mm) put the rim 29.4 degrees above
+the horizon: back-projection then filled only ~10 % of a 320x240 view, ~25 % now.
 """
