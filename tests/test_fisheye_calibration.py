@@ -315,3 +315,21 @@ def test_mei_from_rendered_images_with_added_noise() -> None:
     fe, ft = effective_focal(res.camera.lens), effective_focal(MEI)
     assert abs(fe[0] / ft[0] - 1) < 0.005 and abs(fe[1] / ft[1] - 1) < 0.005
     assert res.heldout_rms_px < 0.3
+
+
+def test_sim_chessboard_writes_views_and_truth(tmp_path: Path) -> None:
+    import json
+
+    from omnidev.sim.chessboard import default_lens
+
+    out = tmp_path / "seq"
+    assert main(["sim", "chessboard", str(out), "--model", "mei", "--views", "2",
+                 "--size", "640x480", "--seed", "3"]) == 0  # fmt: skip
+    truth = json.loads((out / "truth.json").read_text())
+    lens = default_lens("mei", (640, 480))
+    assert truth["lens"]["xi"] == 0.95 and truth["pattern"] == "chessboard:9x6,30"
+    for v in truth["views"]:
+        img = cv2.imread(str(out / v["image"]), cv2.IMREAD_GRAYSCALE)
+        assert img.shape == (480, 640)
+        uv = reproject(lens, BOARD.object_points(), cv2.Rodrigues(np.array(v["R"]))[0], v["t"])
+        np.testing.assert_allclose(uv, v["corners_uv"], atol=1e-9)

@@ -68,7 +68,7 @@ def run_fisheye(args: argparse.Namespace) -> int:
     from omnidev.fisheye.pattern import parse_pattern
 
     pattern = parse_pattern(args.pattern)
-    if args.holdout < 0:
+    if args.holdout < 0 or args.holdout == 1:
         raise CalibrationError(f"--holdout {args.holdout}: 0 (none) or K >= 2 folds")
     check_output(args.output, force=args.force)
     if args.plot is not None:
