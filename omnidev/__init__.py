@@ -14,13 +14,22 @@ from omnidev.calibfile import load_camera
 from omnidev.camera import CameraModel, Maps, Remapper, Unwarper, build_maps, unwarp
 from omnidev.errors import OmnidevError
 from omnidev.frame import Frame, PointerSample
-from omnidev.views import CylinderPanorama, Panorama, Perspective, PlaneView, TopView, View
+from omnidev.views import (
+    CylinderPanorama,
+    Equirectangular,
+    Panorama,
+    Perspective,
+    PlaneView,
+    TopView,
+    View,
+)
 
 __version__ = "0.1.0"
 
 __all__ = [
     "CameraModel",
     "CylinderPanorama",
+    "Equirectangular",
     "Frame",
     "Maps",
     "OmnidevError",

@@ -13,6 +13,7 @@ def test_exports_are_the_documented_names():
     documented = {
         "CameraModel",
         "CylinderPanorama",
+        "Equirectangular",
         "Frame",
         "Maps",
         "OmnidevError",
