@@ -16,7 +16,8 @@ def register_chessboard(ssub: Any) -> None:
         "chessboard",
         help="chessboard / ChArUco views through a fisheye lens, with the true lens and poses",
         description="Render calibration views (viewNN.png) through the KB4 or Mei test lens "
-        "(omnidev.sim.chessboard.default_lens) and write truth.json: the lens parameters, "
+        "(omnidev.sim.chessboard.default_lens; board poses by default_pose_options: Mei "
+        "boards reach the image border) and write truth.json: the lens parameters, "
         "every board pose and every corner's exact pixel.",
     )
     c.add_argument("outdir", type=Path)
@@ -35,7 +36,7 @@ def run_chessboard(args: argparse.Namespace) -> int:
     from omnidev.atomic import atomic_dir
     from omnidev.errors import OmnidevError
     from omnidev.fisheye.pattern import parse_pattern
-    from omnidev.sim.chessboard import default_lens, render_sequence
+    from omnidev.sim.chessboard import default_lens, default_pose_options, render_sequence
 
     if args.views < 1:
         raise OmnidevError("--views must be >= 1")
@@ -43,7 +44,9 @@ def run_chessboard(args: argparse.Namespace) -> int:
     pattern = parse_pattern(args.pattern)
     lens = default_lens(args.model, size)
     try:
-        seq = render_sequence(lens, size, pattern, args.views, seed=args.seed)
+        seq = render_sequence(
+            lens, size, pattern, args.views, seed=args.seed, **default_pose_options(args.model)
+        )
     except ValueError as exc:
         raise OmnidevError(f"--size {args.size} with --pattern {args.pattern}: {exc}") from None
     truth = {

@@ -679,8 +679,11 @@ def _warnings(
             + ": add views with the board there"
         )
 
+    siblings = ({"fx", "fy"}, {"cx", "cy"})  # fx's partner is fy by construction: say the next
+
     def partner(k: int) -> str:
-        j = max((j for j in range(len(names)) if j != k), key=lambda j: abs(corr[k, j]))
+        others = [j for j in range(len(names)) if j != k and {names[k], names[j]} not in siblings]
+        j = max(others, key=lambda j: abs(corr[k, j]))
         return f"correlation with {names[j]} {corr[k, j]:+.3f}"
 
     for k, name in enumerate(names):
@@ -690,7 +693,11 @@ def _warnings(
             or (name == "xi" and std[k] > XI_WARN)
         )
         if bad:
-            out.append(f"{name} is poorly determined: {p[k]:.6g} +- {std[k]:.3g} ({partner(k)})")
+            rel = f"{100 * std[k] / abs(p[k]):.3g} %; " if name in ("fx", "fy") and p[k] else ""
+            out.append(
+                f"{name} is poorly determined: {p[k]:.6g} +- {std[k]:.3g} (1 sigma; {rel}"
+                f"{partner(k)})"
+            )
     if model == "mei" and any(w.startswith(("fx ", "fy ", "xi ")) for w in out):
         g = np.zeros(len(names))
         g[0] = 1 / (1 + p[4])
@@ -698,8 +705,12 @@ def _warnings(
         f_eff = p[0] / (1 + p[4])
         s_eff = math.sqrt(max(float(g @ cov @ g), 0.0))
         out.append(
-            f"(fx, xi and the distortion trade off against each other; the image scale at the "
-            f"axis fx / (1 + xi) = {f_eff:.6g} +- {s_eff:.2g} px/rad is what the data fix)"
+            f"Mei's fx and xi are not separately determined by these views: fx {p[0]:.6g} "
+            f"+- {std[0]:.3g} px ({100 * std[0] / abs(p[0]):.3g} %), xi {p[4]:.4g} +- "
+            f"{std[4]:.3g} (1 sigma; correlation {corr[0, 4]:+.3f}). They trade off against "
+            f"k1 and k2 (exactly at xi = 1, docs/fisheye-calibration.md); the image scale at "
+            f"the axis fx / (1 + xi) = {f_eff:.6g} +- {s_eff:.2g} px/rad is determined. Use "
+            "the camera for its projection, not its fx or xi alone"
         )
     uv, sig = projection_sigma_px(model, lens, size, cov, within_px=reach_px)
     if len(sig):

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, TypedDict
 
 import cv2
 import numpy as np
@@ -386,11 +386,12 @@ def render_sequence(
     blur_sigma_px: float = 0.6,
     noise_sigma: float = 1.5,
     poses: Sequence[tuple[FloatArray, FloatArray]] | None = None,
-    **pose_options: float,
+    **pose_options: float | tuple[float, float],
 ) -> BoardSequence:
     """A calibration sequence: poses from :func:`board_poses` (or ``poses``), truth, images.
 
-    ``pose_options`` go to :func:`board_poses` (e.g. ``max_angle_deg``). With
+    ``pose_options`` go to :func:`board_poses` (e.g. ``max_angle_deg``; the test lenses':
+    :func:`default_pose_options`). With
     ``images=False`` only the truth is computed (fast; for point-level tests).
     """
     if poses is None:
@@ -398,7 +399,8 @@ def render_sequence(
     views = tuple(BoardView(rot, t, project_corners(lens, pattern, rot, t)) for rot, t in poses)
     rendered: tuple[Image, ...] = ()
     if images:
-        quiet = float(pose_options.get("quiet", 1.0))
+        q = pose_options.get("quiet", 1.0)
+        quiet = 1.0 if isinstance(q, tuple) else float(q)
         rays = _pixel_corner_rays(lens, image_size)
         texture = _CharucoTexture(pattern, quiet) if pattern.kind == "charuco" else None
         rendered = tuple(
@@ -444,3 +446,27 @@ def default_lens(model: str, image_size: tuple[int, int] = (800, 800)) -> Lens:
             k1=-0.03, k2=0.006, p1=0.0004, p2=-0.0003,
         )  # fmt: skip
     raise ValueError(f"no default lens for model {model!r}: kb4 or mei")
+
+
+class PoseOptions(TypedDict, total=False):
+    """Options of :func:`board_poses` that :func:`default_pose_options` sets."""
+
+    max_angle_deg: float
+    board_angle_deg: tuple[float, float]
+
+
+def default_pose_options(model: str) -> PoseOptions:
+    """:func:`board_poses` options for the test lens of ``model`` (see :func:`default_lens`).
+
+    KB4: the defaults (corners within 80 degrees of the axis: cv2.fisheye initialises each
+    pose on the pinhole-normalised plane, which a board beyond 90 degrees cannot reach).
+    Mei: corners up to 100 degrees off the axis (the image corners of the Mei test lens are
+    at 100.6 degrees, its inscribed circle at 81) and boards subtending 30 to 95 degrees, so
+    far, small boards reach the image border as a user is told to place them: the corners
+    reach 0.97 of the inscribed radius with 24 views (0.78 with the KB4 options).
+    """
+    if model == "kb4":
+        return {}
+    if model == "mei":
+        return {"max_angle_deg": 100.0, "board_angle_deg": (30.0, 95.0)}
+    raise ValueError(f"no default pose options for model {model!r}: kb4 or mei")
