@@ -454,14 +454,25 @@ def intrinsic_covariance(
     img: Sequence[FloatArray],
     rvecs: Sequence[FloatArray],
     tvecs: Sequence[FloatArray],
+    *,
+    fixed: Sequence[str] = (),
+    sigma_px: float | None = None,
 ) -> FloatArray:
     """Covariance of the intrinsics (:data:`PARAMS` order) with the view poses eliminated.
 
     Gauss-Newton approximation ``sigma^2 (J^T J)^-1`` from numerical Jacobians,
-    ``sigma^2`` = residual sum of squares / (residuals - parameters).
+    ``sigma^2`` = residual sum of squares / (residuals - parameters), or ``sigma_px**2``
+    when the corner noise (px on each of u and v) is known: with the true lens, poses and
+    corners that is the Cramer-Rao bound of an unbiased calibration. Parameters named in
+    ``fixed`` are held (their rows and columns are 0).
     """
+    names = PARAMS[model]
+    unknown = [f for f in fixed if f not in names]
+    if unknown:
+        raise ValueError(f"fixed: {', '.join(unknown)} not among {', '.join(names)}")
     p0 = params_of(lens)
-    n_par = len(p0)
+    free = [k for k, n in enumerate(names) if n not in fixed]
+    n_par = len(free)
     a = np.zeros((n_par, n_par))
     ssr = 0.0
     n_res = 0
@@ -471,18 +482,22 @@ def intrinsic_covariance(
         ssr += float(res @ res)
         n_res += res.size
         ji = np.empty((res.size, n_par))
-        for k in range(n_par):
+        for col, k in enumerate(free):
             h = 1e-6 * max(1.0, abs(float(p0[k])))
             q = p0.copy()
             q[k] += h
-            ji[:, k] = (reproject(lens_from_params(model, q), o, r, t).ravel() - base) / h
+            ji[:, col] = (reproject(lens_from_params(model, q), o, r, t).ravel() - base) / h
         jp = _pose_jacobian(lens, o, np.concatenate([np.ravel(r), np.ravel(t)]), base)
         c = jp.T @ jp
         b = ji.T @ jp
         a += ji.T @ ji - b @ np.linalg.solve(c, b.T)
-    dof = max(n_res - n_par - 6 * len(obj), 1)
-    sigma2 = ssr / dof
-    cov = np.asarray(np.linalg.pinv(a) * sigma2, np.float64)
+    if sigma_px is None:
+        dof = max(n_res - n_par - 6 * len(obj), 1)
+        sigma2 = ssr / dof
+    else:
+        sigma2 = float(sigma_px) ** 2
+    cov = np.zeros((len(p0), len(p0)))
+    cov[np.ix_(free, free)] = np.linalg.pinv(a) * sigma2
     return cov
 
 
