@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from omnidev.cli.main import main
+from omnidev.errors import CalibrationError
 from omnidev.fisheye.calibrate import (
     Detection,
     FisheyeCalibration,
@@ -237,6 +238,40 @@ def test_mei_focal_bound_at_the_truth(mei_points: BoardSequence) -> None:
     assert rel[()][0] > 5 and rel[("p1", "p2")][0] > 5 and rel[("k2",)][0] > 1
     assert rel[("k1", "k2")][0] < 0.5 and rel[("k1", "k2", "p1", "p2")][0] < 0.5
     assert all(r[2] < 0.2 for r in rel.values())
+
+
+def test_mei_fix_is_an_option_that_needs_a_distortion_free_lens(mei_points: BoardSequence) -> None:
+    # holding k1, k2, p1, p2 at 0 (fix=...) makes fx identifiable: right for a lens without
+    # them, biased by many sigmas for the test lens (which has them), with the same held-out RMS
+    free_lens = dataclasses.replace(MEI, k1=0.0, k2=0.0, p1=0.0, p2=0.0)
+    seq = render_sequence(
+        free_lens, SIZE, BOARD, 24, seed=1, images=False, **default_pose_options("mei")
+    )
+    held = ("k1", "k2", "p1", "p2")
+    res0 = calibrate_views(
+        _detections(seq, seq.noisy_corners(NOISE_PX, seed=5)), SIZE, "mei", fix=held
+    )
+    _report("mei k=p=0, fix k1 k2 p1 p2", free_lens, res0)
+    res1 = calibrate_views(
+        _detections(mei_points, mei_points.noisy_corners(NOISE_PX, seed=5)), SIZE, "mei", fix=held
+    )
+    _report("mei, fix k1 k2 p1 p2 (wrong)", MEI, res1)
+    assert res0.flags.endswith("CALIB_FIX_K1 | CALIB_FIX_K2 | CALIB_FIX_P1 | CALIB_FIX_P2")
+    assert abs(res0.params["fx"] / MEI.fx - 1) < 0.005 and res0.std["fx"] < 0.005 * MEI.fx
+    assert res0.heldout_rms_px < 0.3 and res1.heldout_rms_px < 0.3
+    assert res1.params["k1"] == 0.0 and res1.std["k1"] == 0.0
+    assert abs(res1.params["fx"] - MEI.fx) > 5 * res1.std["fx"]  # biased, falsely confident
+    assert all(
+        any(w.startswith("k1, k2, p1, p2 held at 0") for w in r.warnings) for r in (res0, res1)
+    )
+    with pytest.raises(CalibrationError, match="k3"):
+        calibrate_views(
+            _detections(seq, [v.corners_uv for v in seq.views]), SIZE, "mei", fix=("k3",)
+        )
+    with pytest.raises(CalibrationError, match="--model mei"):
+        calibrate_views(
+            _detections(seq, [v.corners_uv for v in seq.views]), SIZE, "kb4", fix=("k1",)
+        )
 
 
 # ---------------------------------------------------------------- robustness, warnings

@@ -55,6 +55,14 @@ PARAMS: dict[str, tuple[str, ...]] = {
 }
 KB4_FLAGS = cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_CHECK_COND | cv2.CALIB_FIX_SKEW
 MEI_FLAGS = cv2.omnidir.CALIB_FIX_SKEW
+# Mei distortion terms calibrate_views(fix=...) can hold at 0 (an option: the default, all free,
+# is what a real lens needs; docs/fisheye-calibration.md, "Mei's fx and xi")
+MEI_FIXABLE = {
+    "k1": cv2.omnidir.CALIB_FIX_K1,
+    "k2": cv2.omnidir.CALIB_FIX_K2,
+    "p1": cv2.omnidir.CALIB_FIX_P1,
+    "p2": cv2.omnidir.CALIB_FIX_P2,
+}
 CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 300, 1e-12)
 OUTLIER_FACTOR = 4.0  # a view whose RMS exceeds this many times the median is dropped ...
 OUTLIER_MIN_PX = 1.0  # ... if it also exceeds this
@@ -350,7 +358,7 @@ def _run_kb4(
 
 
 def _run_mei(
-    obj: list[FloatArray], img: list[FloatArray], size: tuple[int, int]
+    obj: list[FloatArray], img: list[FloatArray], size: tuple[int, int], flags: int = MEI_FLAGS
 ) -> tuple[LensModel, list[FloatArray], list[FloatArray], list[int], dict[int, str]]:
     if len(obj) < MIN_VIEWS:
         return _few(list(range(len(obj))), {})
@@ -362,7 +370,7 @@ def _run_mei(
             np.zeros((3, 3)),
             np.zeros(1),
             np.zeros(4),
-            MEI_FLAGS,
+            flags,
             CRITERIA,
         )
     except cv2.error as exc:
@@ -408,13 +416,26 @@ def _first_line(exc: BaseException) -> str:
 
 
 def _solve(
-    model: str, obj: list[FloatArray], img: list[FloatArray], size: tuple[int, int]
+    model: str,
+    obj: list[FloatArray],
+    img: list[FloatArray],
+    size: tuple[int, int],
+    fix: Sequence[str] = (),
 ) -> _Solve:
     """The solver on views ``obj``/``img``, dropping rejected and outlying views.
 
-    Raises _TooFewError when fewer than MIN_VIEWS views remain.
+    ``fix``: Mei distortion terms held at 0. Raises _TooFewError when fewer than MIN_VIEWS
+    views remain.
     """
-    run = _run_kb4 if model == "kb4" else _run_mei
+    mei_flags = MEI_FLAGS
+    for name in fix:
+        mei_flags |= MEI_FIXABLE[name]
+
+    def run(
+        o: list[FloatArray], i: list[FloatArray], sz: tuple[int, int]
+    ) -> tuple[LensModel, list[FloatArray], list[FloatArray], list[int], dict[int, str]]:
+        return _run_kb4(o, i, sz) if model == "kb4" else _run_mei(o, i, sz, mei_flags)
+
     keep = list(range(len(obj)))
     dropped: dict[int, str] = {}
     while True:
@@ -569,12 +590,14 @@ class FisheyeCalibration:
         return dict(zip(PARAMS[self.model], params_of(self.camera.lens).tolist(), strict=True))
 
 
-def _flag_names(model: str) -> str:
+def _flag_names(model: str, fix: Sequence[str] = ()) -> str:
     if model == "kb4":
         return (
             "cv2.fisheye.calibrate: CALIB_RECOMPUTE_EXTRINSIC | CALIB_CHECK_COND | CALIB_FIX_SKEW"
         )
-    return "cv2.omnidir.calibrate: CALIB_FIX_SKEW"
+    return "cv2.omnidir.calibrate: " + " | ".join(
+        ["CALIB_FIX_SKEW"] + [f"CALIB_FIX_{n.upper()}" for n in MEI_FIXABLE if n in fix]
+    )
 
 
 _OCTANTS = (
@@ -766,6 +789,7 @@ def calibrate_views(
     holdout: int = 4,
     mount: FloatArray | None = None,
     progress: Callable[[str], None] | None = None,
+    fix: Sequence[str] = (),
 ) -> FisheyeCalibration:
     """Calibrate a KB4 or Mei lens from the detected corners of each image.
 
@@ -777,12 +801,25 @@ def calibrate_views(
         holdout: K of the K-fold held-out evaluation (0: none; at most the number of views).
         mount: the camera's mount (:data:`omnidev.fisheye.camera.MOUNTS`), default up.
         progress: called with a short message before each solver run.
+        fix: Mei only, an option for a lens known to have none of them: distortion terms
+            (``k1``, ``k2``, ``p1``, ``p2``) held at 0. Default: all free, as a real lens
+            needs. Holding k1 and k2 makes fx and xi identifiable, but a lens that has them
+            then gets a biased fx that the held-out RMS does not reveal (a warning says so;
+            docs/fisheye-calibration.md).
 
     Raises:
         CalibrationError: no board in any image, fewer than 3 usable views, a solver failure.
     """
     if model not in MODELS:
         raise CalibrationError(f"model {model!r}: choose from {', '.join(MODELS)}")
+    fix = tuple(fix)
+    if fix and model != "mei":
+        raise CalibrationError(f"fix {', '.join(fix)}: holding parameters is for --model mei")
+    bad = [n for n in fix if n not in MEI_FIXABLE]
+    if bad:
+        raise CalibrationError(
+            f"fix {', '.join(bad)}: the Mei terms that can be held are {', '.join(MEI_FIXABLE)}"
+        )
     names = (
         list(names)
         if names is not None
@@ -805,7 +842,7 @@ def calibrate_views(
     say = progress or (lambda _msg: None)
     say(f"calibrating {model} on {len(found)} views")
     try:
-        final = _solve(model, obj, img, image_size)
+        final = _solve(model, obj, img, image_size, fix)
     except _TooFewError as few:
         usable = ", ".join(names[found[i]] for i in few.used) or "none"
         raise CalibrationError(
@@ -828,7 +865,9 @@ def calibrate_views(
             in_idx = [i for i in final.used if i not in out_idx]
             say(f"held-out fold {f + 1}/{k}")
             try:
-                fold = _solve(model, [obj[i] for i in in_idx], [img[i] for i in in_idx], image_size)
+                fold = _solve(
+                    model, [obj[i] for i in in_idx], [img[i] for i in in_idx], image_size, fix
+                )
             except (_TooFewError, CalibrationError):
                 for i in out_idx:
                     notes[i] = f"fold {f + 1} could not be calibrated"
@@ -855,6 +894,7 @@ def calibrate_views(
         [img[i] for i in final.used],
         final.rvecs,
         final.tvecs,
+        fixed=fix,
     )
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -862,6 +902,12 @@ def calibrate_views(
     corr = np.nan_to_num(corr)
     reach, missing, reach_px = _coverage(lens, image_size, [img[i] for i in final.used])
     warns = _warnings(model, lens, image_size, len(final.used), cov, reach, missing, reach_px)
+    if fix:
+        warns.append(
+            f"{', '.join(fix)} held at 0 (fix): fx, xi and the uncertainties assume the lens "
+            "has no such distortion; if it has, fx and xi come out biased by many sigmas "
+            "while the held-out RMS stays as low (docs/fisheye-calibration.md)"
+        )
 
     views: list[ViewError] = []
     pos = {j: n for n, j in enumerate(found)}
@@ -882,7 +928,7 @@ def calibrate_views(
     return FisheyeCalibration(
         camera=camera,
         model=model,
-        flags=_flag_names(model),
+        flags=_flag_names(model, fix),
         train_rms_px=rms_px(np.concatenate(train)),
         heldout_rms_px=heldout,
         folds=k,
