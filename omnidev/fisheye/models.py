@@ -31,7 +31,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Literal, Protocol, runtime_checkable
+from typing import Literal, Protocol, get_args, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,17 +50,7 @@ ModelName = Literal[
     "ds",
     "eucm",
 ]
-MODEL_NAMES: tuple[str, ...] = (
-    "kb4",
-    "mei",
-    "equidistant",
-    "equisolid",
-    "stereographic",
-    "orthographic",
-    "scaramuzza",
-    "ds",
-    "eucm",
-)
+MODEL_NAMES: tuple[str, ...] = get_args(ModelName)
 
 
 @runtime_checkable
