@@ -63,7 +63,10 @@ def read_real(fs: cv2.FileStorage, path: Path, key: str) -> float:
 
 def read_mat(fs: cv2.FileStorage, path: Path, key: str) -> np.ndarray[Any, Any]:
     node = fs.getNode(key)
-    mat = None if node.empty() else node.mat()
+    try:
+        mat = None if node.empty() else node.mat()
+    except cv2.error:  # e.g. an opencv-matrix node cut off before its data
+        raise CalibrationError(f"{path}: matrix key {key!r} is incomplete") from None
     if mat is None:
         raise CalibrationError(f"{path}: missing matrix key {key!r}")
     arr = np.asarray(mat)

@@ -213,6 +213,11 @@ def test_bad_files_give_one_line_errors(tmp_path, capsys) -> None:
         "model.yml": (text.replace("model: kb4", "model: pinhole"), "'model'"),
         "mount.yml": (text.replace("data: [ 1., 0., 0.,", "data: [ 2., 0., 0.,"), "'mount'"),
         "garbage.yml": ("%YAML 1.2\n---\nkind: [fisheye\n", "not a readable"),
+        "cut-in-k.yml": (
+            text.split("k: !!opencv-matrix")[0] + "k: !!opencv-matrix\n"
+            "   rows: 1\n   cols: 4\n   dt: d\n",
+            "matrix key 'k' is incomplete",
+        ),
         "version.yml": (text.replace("format_version: 1", "format_version: 7"), "version 7"),
     }
     for name, (content, needle) in cases.items():
