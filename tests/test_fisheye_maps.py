@@ -30,6 +30,7 @@ from omnidev.fisheye.maps import (
 from omnidev.fisheye.models import (
     EUCM,
     DoubleSphere,
+    FieldOfView,
     IdealFisheye,
     KannalaBrandt,
     Scaramuzza,
@@ -75,6 +76,8 @@ LENSES = {
     "equisolid": (IdealFisheye("equisolid", 300.0, 639.5, 479.5, aspect=1.01), (1280, 960)),
     "ds": (DoubleSphere(158.28, 158.26, 254.96, 256.90, -0.1756, 0.5932), (512, 512)),
     "eucm": (EUCM(157.8, 157.7, 254.9, 256.9, 0.5, 1.2), (512, 512)),
+    # TUM monoVO's FOV calibration (camera-intrinsic-model-rs): rays up to 90 degrees on the image
+    "fov": (FieldOfView(446.91584, 447.071232, 631.2192, 510.997504, 0.933271), (1280, 1024)),
     "scaramuzza": (  # matsuren's calib_results_0.txt (shared/realdata, MIT)
         Scaramuzza(
             (-471.4441, 0.0, 7.356108e-04, -3.773045e-07, 5.800006e-10),

@@ -11,6 +11,7 @@ import pytest
 from omnidev.fisheye.models import (
     EUCM,
     DoubleSphere,
+    FieldOfView,
     IdealFisheye,
     KannalaBrandt,
     LensModel,
@@ -39,6 +40,7 @@ MODELS: dict[str, tuple[LensModel, float]] = {
     "ds-a<.5": (DoubleSphere(200.0, 200.0, 319.0, 240.0, 0.3, 0.45), 1e-9),
     "eucm": (EUCM(230.0, 231.0, 319.0, 240.0, 0.62, 1.05), 1e-9),
     "eucm-a<.5": (EUCM(300.0, 300.0, 319.0, 240.0, 0.4, 0.9), 1e-9),
+    "fov": (FieldOfView(250.0, 251.0, 319.0, 240.0, 0.93), 1e-9),
 }
 
 
@@ -310,6 +312,46 @@ def test_eucm_published_formulas(key: str) -> None:
             back, okb = model.unproject(uv)
             assert okb and np.abs(back - eucm_unproject(u, v, *params)).max() < 1e-12
             assert np.abs(back - np.array(p) / np.linalg.norm(p)).max() < 1e-10
+
+
+def test_fov_published_formula_on_hand_points() -> None:
+    """Devernay & Faugeras 2001: r_d = atan(2 r_u tan(w / 2)) / w on pinhole coordinates.
+    With w = pi / 2 (tan(w / 2) = 1): r_u = 1/2 -> atan(1) / (pi / 2) = 1/2, r_u = sqrt(3)/2
+    -> atan(sqrt(3)) / (pi / 2) = 2/3; r_u -> infinity (90 degrees) -> 1 (not imaged)."""
+    lens = FieldOfView(400.0, 410.0, 320.0, 240.0, math.pi / 2)
+    r3 = math.sqrt(3) / 2
+    points = np.array(
+        [[0.5, 0.0, 1.0], [0.0, -2 * r3, 2.0], [0.6 * r3, 0.8 * r3, 1.0], [0, 0, 3.0]]
+    )
+    expected = [[520.0, 240.0], [320.0, 240.0 - 410 * 2 / 3], [480.0, 240.0 + 410 * 0.8 * 2 / 3],
+                [320.0, 240.0]]  # fmt: skip
+    uv, ok = lens.project(points)
+    assert ok.all() and np.abs(uv - expected).max() < 1e-12
+    rays, ok = lens.unproject(uv)
+    assert ok.all()
+    assert np.abs(rays - points / np.linalg.norm(points, axis=1)[:, None]).max() < 1e-15
+    # Kalibr/basalt near the axis: r_d / r_u -> 2 tan(w / 2) / w; any w, the same formula
+    other = MODELS["fov"][0]
+    assert isinstance(other, FieldOfView)
+    for p in HAND_POINTS:
+        uv1, ok1 = other.project(np.array(p))
+        assert bool(ok1) == (p[2] > 0), p  # a pinhole-based model: z > 0 only
+        if p[2] > 0:
+            xu, yu = p[0] / p[2], p[1] / p[2]
+            ru = math.hypot(xu, yu)
+            f = math.atan(2 * ru * math.tan(other.w / 2)) / (other.w * ru) if ru else 2 * math.tan(
+                other.w / 2) / other.w  # fmt: skip
+            assert (
+                np.abs(uv1 - (other.fx * f * xu + other.cx, other.fy * f * yu + other.cy)).max()
+                < 1e-9
+            )
+    # the image ends at r_d = pi / (2 w): 90 degrees
+    edge = other.cx + other.fx * math.pi / (2 * other.w)
+    assert other.unproject(np.array([[edge - 1e-6, other.cy], [edge + 1e-6, other.cy]]))[
+        1
+    ].tolist() == [True, False]
+    with pytest.raises(ValueError, match="w must be"):
+        FieldOfView(400.0, 400.0, 1.0, 1.0, 0.0)
 
 
 def test_masks_beyond_the_unified_family_limits() -> None:

@@ -2,7 +2,7 @@
 
 Top-level nodes: ``kind: fisheye``, ``format_version: 1``, ``model`` (a lens model
 name: kb4, mei, equidistant, equisolid, stereographic, orthographic, scaramuzza,
-ds, eucm), the model's parameters under the names of its dataclass fields in
+ds, eucm, fov), the model's parameters under the names of its dataclass fields in
 :mod:`omnidev.fisheye.models` (numbers; tuples such as kb4's ``k`` or
 scaramuzza's ``ss`` and optional ``invpol`` as 1xN matrices), ``image_width``,
 ``image_height`` (px), ``mount`` (3x3 orthonormal, ``x_opt = mount @ x_cam``;
@@ -35,6 +35,7 @@ from omnidev.fisheye.camera import MOUNTS, FisheyeCamera, check_rotation
 from omnidev.fisheye.models import (
     EUCM,
     DoubleSphere,
+    FieldOfView,
     IdealFisheye,
     KannalaBrandt,
     LensModel,
@@ -55,6 +56,7 @@ _CLASSES: dict[str, type[Any]] = {
     "scaramuzza": Scaramuzza,
     "ds": DoubleSphere,
     "eucm": EUCM,
+    "fov": FieldOfView,
 }
 _TUPLE_FIELDS = {"k", "ss", "invpol"}
 _OPTIONAL = {"invpol"}

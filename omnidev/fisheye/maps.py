@@ -15,8 +15,8 @@ to within 1e-3 px, about 15 times faster (bench/fisheye.py), by three shortcuts:
    float64 arrays.
 2. **float32 lens arithmetic** on the three (H, W) components, with the
    models' formulas (:mod:`omnidev.fisheye.models`) rearranged so that no
-   ray is normalised where the model does not need it (KB4 needs one atan2, Mei
-   one sqrt and one reciprocal). Maps are float32 anyway; the error this adds
+   ray is normalised where the model does not need it (KB4 and FOV need one atan2,
+   Mei one sqrt and one reciprocal). Maps are float32 anyway; the error this adds
    is below 1e-3 px for images up to a few thousand px.
 3. **Blocks of rows** of about :data:`CHUNK` pixels, so that the temporaries
    stay in the CPU cache; ``cv2.sqrt`` and ``cv2.copyTo`` where they beat numpy.
@@ -45,6 +45,7 @@ from omnidev.camera import INVALID, CameraModel, Maps, project_maps
 from omnidev.fisheye.models import (
     EUCM,
     DoubleSphere,
+    FieldOfView,
     IdealFisheye,
     KannalaBrandt,
     LensModel,
@@ -276,7 +277,9 @@ def has_fast_formula(lens: LensModel) -> bool:
     """Whether :func:`fast_project` handles ``lens`` (else the reference path is used)."""
     if isinstance(lens, Scaramuzza):
         return lens.invpol is not None
-    return isinstance(lens, KannalaBrandt | Unified | IdealFisheye | DoubleSphere | EUCM)
+    return isinstance(
+        lens, KannalaBrandt | Unified | IdealFisheye | DoubleSphere | EUCM | FieldOfView
+    )
 
 
 def fast_project(
@@ -352,6 +355,26 @@ def fast_project(
             v += np.float32(lens.xc)
         return
     t = ws.f()
+    if isinstance(lens, FieldOfView):
+        # r_d = atan2(2 tan(w / 2) hypot(x, y), z) / w; x, y scale by r_d / hypot(x, y).
+        # Valid: z > 0 (a pinhole-based model)
+        np.greater(z, 0.0, out=ok)
+        if max_angle < math.pi / 2:
+            _within_angle(z, n, max_angle, t, ws.b(), ok)
+        rxy = ws.f()
+        np.multiply(x, x, out=rxy)
+        np.multiply(y, y, out=t)
+        rxy += t
+        _sqrt(rxy, rxy)
+        np.multiply(rxy, np.float32(lens.two_tan), out=t)
+        np.arctan2(t, z, out=t)
+        np.maximum(rxy, np.float32(1e-30), out=rxy)  # at the axis: scale 0, not NaN
+        rxy *= np.float32(lens.w)
+        t /= rxy
+        x *= t
+        y *= t
+        _affine(lens.fx, lens.fy, 0.0, lens.cx, lens.cy, x, y, u, v)
+        return
     if isinstance(lens, Unified):
         # valid: z > -w |p| (w = xi for xi <= 1, 1 / xi beyond: there the image folds);
         # it implies z + xi |p| > 0 and |p| > 0

@@ -21,6 +21,7 @@ Models (docs/fisheye.md has the formulas):
   ``orthographic``.
 - :class:`Scaramuzza` (``scaramuzza``): OCamCalib's polynomial model.
 - :class:`DoubleSphere` (``ds``) and :class:`EUCM` (``eucm``): Usenko et al. 2018.
+- :class:`FieldOfView` (``fov``): Devernay & Faugeras 2001, pinhole-based (z > 0 only).
 
 Angles are radians throughout.
 """
@@ -49,6 +50,7 @@ ModelName = Literal[
     "scaramuzza",
     "ds",
     "eucm",
+    "fov",
 ]
 MODEL_NAMES: tuple[str, ...] = get_args(ModelName)
 
@@ -764,3 +766,70 @@ class EUCM:
         ok = np.isfinite(r2) & (inner >= 0)
         mz = (1 - b * a * a * r2) / (a * np.sqrt(np.where(ok, inner, 0.0)) + 1 - a)
         return _pack_rays(mx, my, mz, ok)
+
+
+# ---------------------------------------------------------------- FOV (Devernay-Faugeras)
+
+
+@dataclass(frozen=True)
+class FieldOfView:
+    """The FOV (``atan``) model of Devernay & Faugeras 2001 (DSO, Kalibr ``fov``, basalt ``fov``).
+
+    On the pinhole's normalized coordinates (x_u, y_u) = (x, y) / z with r_u =
+    hypot(x_u, y_u): r_d = atan(2 r_u tan(w / 2)) / w, (x_d, y_d) = (x_u, y_u) r_d / r_u,
+    u = fx x_d + cx, v = fy y_d + cy (``w`` in rad, 0 < w < pi). Computed as
+    r_d = atan2(2 tan(w / 2) hypot(x, y), z) / w, which is the same for z > 0.
+
+    A pinhole-based model: valid only for rays in front of the lens plane, z > 0
+    (angle from the axis < 90 degrees, :attr:`max_angle` = pi / 2), and pixels with
+    r_d w < pi / 2. basalt and camera-intrinsic-model-rs evaluate the atan2 form
+    behind the lens too (basalt marks those rays invalid); Devernay and Faugeras
+    define it on x / z only, and so does omnidev.
+    """
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    w: float
+
+    def __post_init__(self) -> None:
+        _check("fov", fx=self.fx, fy=self.fy, cx=self.cx, cy=self.cy, w=self.w)
+        if not 0.0 < self.w < math.pi:
+            raise ValueError(f"fov parameter w must be in (0, pi) rad, not {self.w}")
+
+    @property
+    def name(self) -> str:
+        return "fov"
+
+    @property
+    def max_angle(self) -> float:
+        return math.pi / 2
+
+    @property
+    def two_tan(self) -> float:
+        """2 tan(w / 2)."""
+        return 2.0 * math.tan(self.w / 2.0)
+
+    def project(self, xyz: ArrayLike) -> tuple[FloatArray, BoolArray]:
+        p = _points(xyz)
+        x, y, z = p[..., 0], p[..., 1], p[..., 2]
+        rxy = np.hypot(x, y)
+        valid = _finite_rows(p) & (z > 0)
+        rd = np.arctan2(self.two_tan * rxy, z) / self.w
+        # at the axis the scale r_d / rxy tends to 2 tan(w / 2) / (w z)
+        axis = self.two_tan / (self.w * np.where(valid, z, 1.0))
+        scale = np.where(rxy > 0, rd / np.where(rxy > 0, rxy, 1.0), axis)
+        return _pack_uv(self.fx * x * scale + self.cx, self.fy * y * scale + self.cy, valid)
+
+    def unproject(self, uv: ArrayLike) -> tuple[FloatArray, BoolArray]:
+        q = _pixels(uv)
+        mx = (q[..., 0] - self.cx) / self.fx
+        my = (q[..., 1] - self.cy) / self.fy
+        rd = np.hypot(mx, my)
+        phi = rd * self.w  # the angle atan(2 tan(w / 2) r_u) < pi / 2
+        ok = np.isfinite(rd) & (phi < math.pi / 2)
+        # (x_u, y_u, 1) scaled by cos(phi): x_u = (mx / rd) tan(phi) / (2 tan(w / 2))
+        safe = np.where(rd > 0, rd, 1.0)
+        s = np.where(rd > 0, np.sin(phi) / (self.two_tan * safe), self.w / self.two_tan)
+        return _pack_rays(mx * s, my * s, np.cos(phi), ok)
