@@ -110,6 +110,8 @@ realdata = pytest.mark.skipif(
          "ocamcalib_matsuren_fisheye1600/img0.jpg", "forward", "perspective:320x240,fov=100"),
         ("tumvi_fisheye/calib/tumvi_512_kb4_official.yaml", "tumvi_fisheye/images/cam0.png",
          "up", "perspective:200x200,fov=100,tilt=90"),
+        ("tumvi_fisheye/calib/camera-intrinsic-model_fov_tum_mono.json",
+         "tumvi_fisheye/images/fov_tum_mono.png", "forward", "perspective:320x240,fov=100"),
     ],
 )  # fmt: skip
 def test_real_calibration_imports_and_unwarps(tmp_path, capsys, calib, image, mount, view):
@@ -123,3 +125,23 @@ def test_real_calibration_imports_and_unwarps(tmp_path, capsys, calib, image, mo
     w, h = (int(x) for x in view.split(":")[1].split(",")[0].split("x"))
     assert got.shape == (h, w, 3)
     assert got.mean() > 20 and got.std() > 10  # a real picture, not the invalid fill
+
+
+@realdata
+def test_pyocamcalib_json_is_detected_and_needs_the_image_size(tmp_path, capsys):
+    calib = REALDATA / "ocamcalib_urban_samples/Fisheye1/py-OCamCalib_calibration_fisheye_1.json"
+    out = tmp_path / "cam.yml"
+    err = _one_line_error(capsys, ["calibrate", "import", str(calib), "-o", str(out)])
+    assert "no image size in the file; give --image-size" in err
+    argv = ["calibrate", "import", str(calib), "--image-size", "1032x778", "--mount", "forward",
+            "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    assert "scaramuzza: ss=[-338.83" in capsys.readouterr().out
+    cam = read_camera_file(out)
+    assert isinstance(cam.lens, Scaramuzza) and cam.image_size == (1032, 778)
+    png = tmp_path / "view.png"
+    image = REALDATA / "ocamcalib_urban_samples/Fisheye1/images/Fisheye1_1.jpg"
+    assert main(["unwarp", str(image), "--camera", str(out), "--view",
+                 "perspective:320x240,fov=100", "-o", str(png)]) == 0  # fmt: skip
+    got = cv2.imread(str(png))
+    assert got.shape == (240, 320, 3) and got.mean() > 20 and got.std() > 10

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -31,11 +32,13 @@ from omnidev.fisheye.formats import (
     parse_basalt,
     parse_kalibr,
     parse_ocamcalib,
+    parse_pyocamcalib,
     write_opencv,
 )
 from omnidev.fisheye.models import (
     EUCM,
     DoubleSphere,
+    FieldOfView,
     IdealFisheye,
     KannalaBrandt,
     LensModel,
@@ -50,6 +53,7 @@ MEI = Unified(
 )  # fmt: skip
 DS = DoubleSphere(fx=158.28, fy=158.27, cx=254.96, cy=256.88, xi=-0.1721, alpha=0.5931)
 EU = EUCM(fx=191.14, fy=191.13, cx=254.95, cy=256.88, alpha=0.6291, beta=1.0418)
+FOV = FieldOfView(fx=446.91584, fy=447.071232, cx=631.2192, cy=510.997504, w=0.933271)
 OCAM = Scaramuzza(
     ss=(-337.4374, 0.0, 0.001232446, -1.355883e-06, 2.914654e-09),
     xc=378.875612, yc=541.097113, c=0.998971, d=-0.000104, e=-0.000312,
@@ -141,7 +145,7 @@ def test_ocamcalib_conventions_row_column_and_frame() -> None:
 # ---------------------------------------------------------------- Kalibr
 
 
-@pytest.mark.parametrize("lens", [KB4, dataclasses.replace(MEI, skew=0.0), DS, EU])
+@pytest.mark.parametrize("lens", [KB4, dataclasses.replace(MEI, skew=0.0), DS, EU, FOV])
 def test_kalibr_round_trip(tmp_path: Path, lens: Any) -> None:
     other = dataclasses.replace(KB4, fx=100.0)
     text = kalibr_text(other, (640, 480), "cam0") + kalibr_text(lens, SIZE, "cam1")
@@ -191,13 +195,13 @@ def test_tumvi_style_named_yaml() -> None:
 
 
 def test_basalt_round_trip(tmp_path: Path) -> None:
-    lenses: list[LensModel] = [KB4, DS, EU]
-    sizes = [SIZE, (640, 480), (1280, 1024)]
+    lenses: list[LensModel] = [KB4, DS, EU, FOV]
+    sizes = [SIZE, (640, 480), (1280, 1024), (1280, 1024)]
     path = _write(tmp_path / "calibration.json", basalt_text(lenses, sizes))
     assert detect_format(path) == "basalt"
     for i, (lens, size) in enumerate(zip(lenses, sizes, strict=True)):
         got = import_calibration(path, camera=str(i))
-        assert got.lens == lens and got.image_size == size and got.cameras == ("0", "1", "2")
+        assert got.lens == lens and got.image_size == size and got.cameras == ("0", "1", "2", "3")
         _omnidev_round_trip(tmp_path, lens, size)
     assert import_calibration(path, camera="cam2").lens == EU
 
@@ -223,6 +227,110 @@ def test_camera_intrinsic_model_json(tmp_path: Path) -> None:
     path = _write(tmp_path / "eucm0.json", json.dumps(doc))
     assert detect_format(path) == "cim"
     assert import_calibration(path).lens == EU
+    doc = {"FovCamera": {"fx": FOV.fx, "fy": FOV.fy, "cx": FOV.cx, "cy": FOV.cy, "w": FOV.w,
+                         "width": 1280, "height": 1024}}  # fmt: skip
+    path = _write(tmp_path / "fov.json", json.dumps(doc))
+    assert detect_format(path) == "cim"
+    got = import_calibration(path)
+    assert got.lens == FOV and got.image_size == (1280, 1024)
+
+
+def test_kalibr_pinhole_fov_is_the_fov_model() -> None:
+    """Kalibr's FovDistortion: r_d = atan(2 r tan(w / 2)) / w on x / z, y / z."""
+    doc = miniyaml.loads(
+        "cam0:\n  camera_model: pinhole\n  intrinsics: [400.0, 401.0, 320.0, 240.0]\n"
+        "  distortion_model: fov\n  distortion_coeffs: [0.9]\n  resolution: [640, 480]\n"
+    )
+    lens = parse_kalibr(doc, "x").lens
+    assert lens == FieldOfView(400.0, 401.0, 320.0, 240.0, 0.9)
+    pts = np.random.default_rng(5).uniform([-0.8, -0.6, 0.5], [0.8, 0.6, 2.0], (50, 3))
+    x, y = pts[:, 0] / pts[:, 2], pts[:, 1] / pts[:, 2]
+    r = np.hypot(x, y)
+    f = np.arctan(2 * r * np.tan(0.45)) / (0.9 * r)
+    uv, ok = lens.project(pts)
+    assert (
+        ok.all() and np.abs(uv - np.stack([400 * f * x + 320, 401 * f * y + 240], 1)).max() < 1e-9
+    )
+
+
+# ---------------------------------------------------------------- py-OCamCalib
+
+
+def _pyocam_world2cam(doc: dict[str, Any], pts: np.ndarray) -> np.ndarray:
+    """py-OCamCalib's Camera.world2cam as it is written: the smallest positive real root of
+    P(rho) - rho z / hypot(x, y), then the stretch applied with the column updated first."""
+    p = np.array(doc["taylor_coefficient"], np.float64)
+    (c, d), (e, _) = doc["stretch_matrix"]
+    out = []
+    for x, y, z in pts:
+        r = math.hypot(x, y)
+        coeffs = p[::-1].copy()
+        coeffs[-2] -= z / r
+        roots = np.roots(coeffs)
+        rho = min(v.real for v in roots if abs(v.imag) < 1e-12 and v.real > 0)
+        px, py = x / r * rho, y / r * rho
+        px = px * c + py * d
+        py = px * e + py
+        out.append((px + doc["distortion_center"][0], py + doc["distortion_center"][1]))
+    return np.array(out)
+
+
+PYOCAM_DOC = {
+    "taylor_coefficient": [337.7168, 0.0, -0.00122383, 1.3804e-06, -3.0106e-09],
+    "distortion_center": [543.986, 377.649],
+    "stretch_matrix": [[1.0033, 0.0123], [-0.0104, 1.0]],
+    "rms_overall": 0.24,
+}
+
+
+def test_pyocamcalib_json_projects_as_pyocamcalib_does(tmp_path: Path) -> None:
+    """Centre (column, row), stretch on the columns (with world2cam's row-after-column update),
+    sign-flipped Taylor polynomial, inverse polynomial in descending powers of the angle from
+    the axis: the imported Scaramuzza lens projects as py-OCamCalib's world2cam, exactly."""
+    pts = np.random.default_rng(6).normal(size=(300, 3)) + np.array([0.0, 0.0, 0.3])
+    ref = _pyocam_world2cam(PYOCAM_DOC, pts)
+    path = _write(tmp_path / "calibration_fisheye.json", json.dumps(PYOCAM_DOC))
+    assert detect_format(path) == "pyocamcalib"
+    got = import_calibration(path)
+    lens = got.lens
+    assert isinstance(lens, Scaramuzza) and lens.invpol is None and got.format == "pyocamcalib"
+    assert (lens.xc, lens.yc) == (377.649, 543.986) and lens.ss[0] < 0
+    uv, ok = lens.project(pts)
+    angle = np.degrees(np.arctan2(np.hypot(pts[:, 0], pts[:, 1]), pts[:, 2]))
+    assert ok[angle < 150].all()
+    assert np.abs(uv[ok] - ref[ok]).max() < 1e-8
+    rays, ok2 = lens.unproject(uv[ok])
+    unit = pts[ok] / np.linalg.norm(pts[ok], axis=1)[:, None]
+    assert ok2.all() and np.abs(rays - unit).max() < 1e-10
+    # inverse_poly as py-OCamCalib fits it: rho(theta) over [0, 0.9 pi], descending powers
+    theta = np.linspace(0, 0.9 * math.pi, 100)
+    rho = np.hypot(*(_pyocam_world2cam({**PYOCAM_DOC, "stretch_matrix": [[1, 0], [0, 1]],
+        "distortion_center": [0, 0]}, np.stack([np.sin(theta[1:]), 0 * theta[1:],
+        np.cos(theta[1:])], 1))).T)  # fmt: skip
+    inv = np.polyfit(theta[1:], rho, 12)
+    assert np.abs(np.polyval(inv, theta[1:]) - rho).max() < 0.05  # px, to 162 degrees
+    with_inv = parse_pyocamcalib({**PYOCAM_DOC, "inverse_poly": inv.tolist()}, "x").lens
+    assert isinstance(with_inv, Scaramuzza) and with_inv.invpol is not None
+    uv3, ok3 = with_inv.project(pts)
+    both = ok & ok3 & (angle < 0.9 * 180)
+    assert both.sum() > 250 and np.abs(uv3[both] - ref[both]).max() < 0.1
+    _omnidev_round_trip(tmp_path, lens, (1032, 778))
+
+
+@pytest.mark.parametrize(
+    ("change", "key"),
+    [
+        ({"taylor_coefficient": None}, "missing key 'taylor_coefficient'"),
+        ({"taylor_coefficient": [-337.0, 0.0, 0.001]}, "first > 0"),
+        ({"distortion_center": [1.0]}, "'distortion_center' has 1 numbers, expected 2"),
+        ({"stretch_matrix": [[1.0, 0.0]]}, "'stretch_matrix' is not a 2x2 matrix"),
+        ({"stretch_matrix": [[1.0, 0.0], [0.0, 2.0]]}, "[[c, d], [e, 1]]"),
+        ({"inverse_poly": [1.0, "a"]}, "key 'inverse_poly' is not a number"),
+    ],
+)
+def test_pyocamcalib_bad_keys_are_named(tmp_path: Path, change: dict[str, Any], key: str) -> None:
+    path = _write(tmp_path / "py.json", json.dumps({**PYOCAM_DOC, **change}))
+    assert key in _error(path, fmt="pyocamcalib")
 
 
 # ---------------------------------------------------------------- OpenCV
@@ -319,6 +427,7 @@ def test_unreadable_files(tmp_path: Path) -> None:
         ("b.json", '{"value0": {"intrinsics": [{"camera_type": "ds", "intrinsics": '
          '{"fx": 1, "fy": 1, "cx": 1, "cy": 1, "xi": 0}}]}}', "basalt", "intrinsics.alpha"),
         ("b.json", '{"value0": {"resolution": []}}', "basalt", "value0.intrinsics"),
+        ("f.json", '{"FovCamera": {"fx": 1}}', "cim", "FovCamera.fy"),
         ("o.yml", "%YAML:1.0\nD: [0, 0, 0, 0]\n", "opencv", "'K'"),
         ("o.yml", "%YAML:1.0\nK: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
          "  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n", "opencv", "'D'"),
@@ -334,11 +443,14 @@ def test_partial_files_name_the_key(
     ("name", "text", "what"),
     [
         ("k.yaml", "cam0:\n  camera_model: fov\n  intrinsics: [1]\n", "camera_model 'fov'"),
+        ("k.yaml", "cam0:\n  camera_model: omni\n  intrinsics: [1, 1, 1, 1, 1]\n"
+         "  distortion_model: fov\n  distortion_coeffs: [0.9]\n", "omni with distortion 'fov'"),
         ("k.yaml", "cam0:\n  camera_model: pinhole\n  intrinsics: [1, 1, 1, 1]\n"
-         "  distortion_model: fov\n  distortion_coeffs: [0.9]\n", "distortion_model 'fov'"),
+         "  distortion_model: fisheye\n  distortion_coeffs: [0.9]\n",
+         "distortion_model 'fisheye'"),
         ("b.json", '{"value0": {"intrinsics": [{"camera_type": "bal", "intrinsics": {}}]}}',
          "camera_type 'bal'"),
-        ("f.json", '{"FovCamera": {"fx": 1}}', "model 'FovCamera'"),
+        ("f.json", '{"KannalaBrandt": {"fx": 1}}', "model 'KannalaBrandt'"),
         ("o.yml", "%YAML:1.0\nK: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n", "not an upper-triangular"),
         ("o.yml", "%YAML:1.0\nkind: pano-table\n", "kind 'pano-table'"),
         ("c.txt", "#\n3 100 0 0.001\n0\n200 300\n1 0 0\n480 640\n", "ss[0] < 0"),

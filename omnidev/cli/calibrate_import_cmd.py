@@ -1,6 +1,6 @@
 """``omnidev calibrate import``: another tool's fisheye/omni calibration -> an omnidev camera file.
 
-Reads OCamCalib, Kalibr, basalt, camera-intrinsic-model or OpenCV files
+Reads OCamCalib, py-OCamCalib, Kalibr, basalt, camera-intrinsic-model or OpenCV files
 (:mod:`omnidev.fisheye.formats`), mounts the lens (``--mount``) and writes a ``fisheye``
 camera file that ``omnidev unwarp --camera`` reads; ``--export-opencv`` also writes
 K, D (and xi) for cv2.fisheye / cv2.omnidir users.
@@ -29,7 +29,8 @@ def register_import(csub: Any) -> None:
         "import",
         help="import a fisheye/omni calibration from OCamCalib, Kalibr, basalt or OpenCV",
         description="Read another tool's calibration of a fisheye or central omni-camera "
-        "(OCamCalib calib_results.txt, Kalibr camchain YAML, basalt calibration.json, "
+        "(OCamCalib calib_results.txt, py-OCamCalib JSON, Kalibr camchain YAML, basalt "
+        "calibration.json, "
         "camera-intrinsic-model JSON, OpenCV FileStorage with K/D[/xi]) and write an omnidev "
         "'fisheye' camera file for `omnidev unwarp --camera`. docs/fisheye-import.md lists "
         "the models and conventions.",
@@ -37,7 +38,7 @@ def register_import(csub: Any) -> None:
     c.add_argument("file", type=Path, help="the calibration file")
     c.add_argument(
         "--format",
-        choices=("auto", "ocamcalib", "kalibr", "basalt", "cim", "opencv"),
+        choices=("auto", "ocamcalib", "pyocamcalib", "kalibr", "basalt", "cim", "opencv"),
         default="auto",
         help="file format (default: from the name and contents)",
     )

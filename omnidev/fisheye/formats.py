@@ -8,16 +8,21 @@ format      file                                               lens model
 ocamcalib   OCamCalib ``calib_results.txt`` (export_data.m):   :class:`Scaramuzza`
             ss, invpol, centre row/column (0-based), c d e,
             height width
+pyocamcalib py-OCamCalib calibration JSON: ``taylor_coefficient``, :class:`Scaramuzza` (converted
+            ``distortion_center`` (column, row, 0-based),      exactly, see
+            ``stretch_matrix``, ``inverse_poly`` (optional)    :func:`parse_pyocamcalib`)
 kalibr      Kalibr camchain YAML, one ``camN`` per camera:     pinhole-equidistant
             ``camera_model``, ``intrinsics``,                  -> :class:`KannalaBrandt`;
             ``distortion_model``, ``distortion_coeffs``,        omni(-radtan), pinhole(-radtan)
             ``resolution``; also a YAML of named parameters    -> :class:`Unified`; ds -> DS;
-            per camera (``camN: {fx, fy, cx, cy, k1..k4}`` +   eucm -> EUCM
+            per camera (``camN: {fx, fy, cx, cy, k1..k4}`` +   eucm -> EUCM; pinhole-fov
+                                                               -> :class:`FieldOfView`
             ``width``, ``height``, as TUM-VI publishes it)
-basalt      basalt ``calibration.json`` (cereal ``value0``):   kb4, ds, eucm, ucm, pinhole
+basalt      basalt ``calibration.json`` (cereal ``value0``):   kb4, ds, eucm, ucm, pinhole, fov
             ``intrinsics[N].camera_type`` + named params,
             ``resolution[N]``
-cim         camera-intrinsic-model-rs JSON ``{"EUCM": {...}}`` :class:`EUCM`
+cim         camera-intrinsic-model-rs JSON ``{"EUCM": {...}}`` :class:`EUCM`, :class:`FieldOfView`
+            or ``{"FovCamera": {...}}``
 opencv      cv2.FileStorage (YAML/XML/JSON): ``K`` or          with ``xi``: :class:`Unified`
             ``camera_matrix`` + ``D`` or                       (cv2.omnidir); 4 coefficients:
             ``distortion_coefficients`` [+ ``xi``], optional   :class:`KannalaBrandt`
@@ -28,7 +33,7 @@ opencv      cv2.FileStorage (YAML/XML/JSON): ``K`` or          with ``xi``: :cla
 Parameter orders (Kalibr ``intrinsics``): pinhole ``[fu fv pu pv]``, omni
 ``[xi fu fv pu pv]``, ds ``[xi alpha fu fv pu pv]``, eucm ``[alpha beta fu fv pu pv]``;
 ``distortion_coeffs``: equidistant ``[k1 k2 k3 k4]``, radtan ``[k1 k2 r1 r2]`` (= OpenCV
-``k1 k2 p1 p2``). basalt names every parameter. A UCM (basalt ``ucm``, parameter
+``k1 k2 p1 p2``), fov ``[w]``. basalt names every parameter. A UCM (basalt ``ucm``, parameter
 ``alpha``) is the unified model with ``xi = alpha / (1 - alpha)`` and focal lengths
 divided by ``1 - alpha``; a pinhole with radial-tangential distortion is the unified
 model with ``xi = 0``.
@@ -36,7 +41,8 @@ model with ``xi = 0``.
 Written: :func:`opencv_nodes` / :func:`write_opencv` (``K``, ``D``, ``xi`` as cv2.fisheye
 and cv2.omnidir users read them, for KB4 and unified lenses), and text in the OCamCalib,
 Kalibr and basalt formats (:func:`ocamcalib_text`, :func:`kalibr_text`,
-:func:`basalt_text`), so that every format round-trips.
+:func:`basalt_text`), so that every format round-trips (py-OCamCalib's and
+camera-intrinsic-model-rs's are read only).
 
 The ``parse_*`` functions are pure (text or dict in, :class:`Imported` out); ``source``
 only names the file in errors. A bad file raises one-line
@@ -63,6 +69,7 @@ from omnidev.fisheye import miniyaml
 from omnidev.fisheye.models import (
     EUCM,
     DoubleSphere,
+    FieldOfView,
     IdealFisheye,
     KannalaBrandt,
     LensModel,
@@ -72,8 +79,8 @@ from omnidev.fisheye.models import (
 
 FloatArray = NDArray[np.float64]
 
-Format = Literal["ocamcalib", "kalibr", "basalt", "cim", "opencv"]
-FORMATS: tuple[Format, ...] = ("ocamcalib", "kalibr", "basalt", "cim", "opencv")
+Format = Literal["ocamcalib", "pyocamcalib", "kalibr", "basalt", "cim", "opencv"]
+FORMATS: tuple[Format, ...] = ("ocamcalib", "pyocamcalib", "kalibr", "basalt", "cim", "opencv")
 
 
 @dataclass(frozen=True)
@@ -252,10 +259,69 @@ def ocamcalib_text(lens: Scaramuzza, image_size: tuple[int, int]) -> str:
     )
 
 
+# ---------------------------------------------------------------- py-OCamCalib
+
+PYOCAMCALIB_KEYS = ("taylor_coefficient", "distortion_center", "stretch_matrix")
+
+
+def parse_pyocamcalib(doc: Any, source: str) -> Imported:
+    """py-OCamCalib's calibration JSON (jakarto3d/py-OCamCalib) -> :class:`Scaramuzza`.
+
+    py-OCamCalib's frame is the optical frame (x right, y down, z forward): sensor
+    point (x_s, y_s) has the ray (x_s, y_s, P(rho)), P = ``taylor_coefficient``
+    (ascending, a0 > 0: OCamCalib's ss with the sign flipped), and lies at pixel
+    (column, row) = S (x_s, y_s) + ``distortion_center`` (column, row; 0-based, as
+    OpenCV's corners), S = ``stretch_matrix`` [[c', d'], [e', 1]]. Its ``world2cam``
+    (the projection its bundle adjustment fits and its RMS is measured with)
+    applies S row by row, reusing the updated column in the row:
+    row = e' (c' x_s + d' y_s) + y_s, i.e. S_eff = [[c', d'], [e' c', 1 + e' d']]; that
+    is the matrix used here (it differs from S by < 1e-3 px on a 1000 px image).
+    ``inverse_poly`` is rho(theta), theta = angle from the axis, DEScending powers.
+
+    In OCamCalib's terms (x along rows): a = y_s, b = x_s, [row - xc, col - yc] =
+    [[1 + e' d', e' c'], [d', c']] (a, b). OCamCalib's affine has 1 in the corner, so
+    the sensor coordinates are rescaled by c': ss_i = -P_i / c'^(i - 1),
+    c = (1 + e' d') / c', d = e', e = d' / c', invpol(t) = c' inverse_poly(t + pi / 2),
+    an exact reparametrization (same rays for the same pixels). No image size is stored.
+    """
+    if not isinstance(doc, Mapping):
+        raise _fail(source, "not a py-OCamCalib calibration (expected taylor_coefficient)")
+    p = _numbers(_get(doc, "taylor_coefficient", source), source, "taylor_coefficient")
+    if len(p) < 2 or not p[0] > 0:
+        raise _fail(source, "key 'taylor_coefficient' needs >= 2 numbers with the first > 0")
+    col0, row0 = _numbers(_get(doc, "distortion_center", source), source, "distortion_center", 2)
+    sm = _get(doc, "stretch_matrix", source)
+    rows = sm if isinstance(sm, list) and len(sm) == 2 else None
+    if rows is None:
+        raise _fail(source, "key 'stretch_matrix' is not a 2x2 matrix")
+    (c1, d1), (e1, one) = (_numbers(r, source, "stretch_matrix", 2) for r in rows)
+    if one != 1.0 or not c1 > 0:
+        raise _fail(source, "key 'stretch_matrix' must be [[c, d], [e, 1]] with c > 0")
+    lam = 1.0 / c1
+    ss = tuple(-v * lam ** (i - 1) for i, v in enumerate(p))
+    invpol = None
+    if doc.get("inverse_poly") is not None:
+        q = _numbers(doc["inverse_poly"], source, "inverse_poly")
+        if q:
+            shifted = np.polynomial.Polynomial(q[::-1])(np.polynomial.Polynomial([math.pi / 2, 1]))
+            invpol = tuple(float(v) * c1 for v in shifted.coef)
+    with _model_errors(source):
+        lens = Scaramuzza(
+            ss=ss,
+            xc=row0,
+            yc=col0,
+            c=(1.0 + e1 * d1) * lam,
+            d=e1,
+            e=d1 * lam,
+            invpol=invpol,
+        )
+    return Imported(lens, None, "pyocamcalib")
+
+
 # ---------------------------------------------------------------- Kalibr
 
 _KALIBR_MODELS = ("pinhole", "omni", "ds", "eucm")
-_KALIBR_DISTORTIONS = ("none", "equidistant", "radtan")
+_KALIBR_DISTORTIONS = ("none", "equidistant", "radtan", "fov")
 
 
 def _kalibr_lens(cam: Mapping[str, Any], source: str, p: str) -> LensModel:
@@ -273,12 +339,17 @@ def _kalibr_lens(cam: Mapping[str, Any], source: str, p: str) -> LensModel:
         )
     n_intr = {"pinhole": 4, "omni": 5, "ds": 6, "eucm": 6}[model]
     intr = _numbers(_get(cam, "intrinsics", source, p), source, p + "intrinsics", n_intr)
-    n_dist = {"none": 0, "equidistant": 4, "radtan": 4}[dist]
+    n_dist = {"none": 0, "equidistant": 4, "radtan": 4, "fov": 1}[dist]
     coeffs = cam.get("distortion_coeffs")
     dc = [] if coeffs in (None, []) and n_dist == 0 else coeffs
     d = _numbers(dc, source, p + "distortion_coeffs", n_dist)
     if model in ("ds", "eucm") and dist != "none":
         raise _fail(source, f"{p}camera_model {model} with distortion {dist!r} is not read")
+    if dist == "fov":
+        if model != "pinhole":
+            raise _fail(source, f"{p}camera_model {model} with distortion 'fov' is not read")
+        fx, fy, cx, cy = intr
+        return FieldOfView(fx=fx, fy=fy, cx=cx, cy=cy, w=d[0])
     if model == "pinhole" and dist == "equidistant":
         fx, fy, cx, cy = intr
         return KannalaBrandt(fx=fx, fy=fy, cx=cx, cy=cy, k=(d[0], d[1], d[2], d[3]))
@@ -328,7 +399,7 @@ def parse_kalibr(doc: Any, source: str, camera: str | None = None) -> Imported:
 
 
 def kalibr_text(lens: LensModel, image_size: tuple[int, int], name: str = "cam0") -> str:
-    """``lens`` as one camera of a Kalibr camchain (KB4, unified, DS, EUCM)."""
+    """``lens`` as one camera of a Kalibr camchain (KB4, unified, DS, EUCM, FOV)."""
     d: tuple[float, ...]
     if isinstance(lens, KannalaBrandt):
         model, intr, dist, d = (
@@ -346,6 +417,9 @@ def kalibr_text(lens: LensModel, image_size: tuple[int, int], name: str = "cam0"
     elif isinstance(lens, EUCM):
         model, intr = "eucm", [lens.alpha, lens.beta, lens.fx, lens.fy, lens.cx, lens.cy]
         dist, d = "none", ()
+    elif isinstance(lens, FieldOfView):
+        model, intr = "pinhole", [lens.fx, lens.fy, lens.cx, lens.cy]
+        dist, d = "fov", (lens.w,)
     else:
         raise CalibrationError(f"Kalibr has no {lens.name!r} model")
     if getattr(lens, "skew", 0.0):
@@ -369,6 +443,7 @@ _BASALT = {
     "eucm": ("fx", "fy", "cx", "cy", "alpha", "beta"),
     "ucm": ("fx", "fy", "cx", "cy", "alpha"),
     "pinhole": ("fx", "fy", "cx", "cy"),
+    "fov": ("fx", "fy", "cx", "cy", "w"),
 }
 
 
@@ -405,6 +480,8 @@ def parse_basalt(doc: Any, source: str, camera: str | None = None) -> Imported:
         lens = EUCM(fx=fx, fy=fy, cx=cx, cy=cy, alpha=v["alpha"], beta=v["beta"])
     elif kind == "ucm":
         lens = _ucm(fx, fy, cx, cy, v["alpha"], source)
+    elif kind == "fov":
+        lens = FieldOfView(fx=fx, fy=fy, cx=cx, cy=cy, w=v["w"])
     else:
         lens = Unified(fx=fx, fy=fy, cx=cx, cy=cy, xi=0.0)
     size = None
@@ -426,6 +503,8 @@ def basalt_text(lenses: Sequence[LensModel], sizes: Sequence[tuple[int, int]]) -
             t, names = "ds", {"xi": lens.xi, "alpha": lens.alpha}
         elif isinstance(lens, EUCM):
             t, names = "eucm", {"alpha": lens.alpha, "beta": lens.beta}
+        elif isinstance(lens, FieldOfView):
+            t, names = "fov", {"w": lens.w}
         else:
             raise CalibrationError(f"basalt has no {lens.name!r} model here")
         params = {"fx": lens.fx, "fy": lens.fy, "cx": lens.cx, "cy": lens.cy, **names}
@@ -437,18 +516,30 @@ def basalt_text(lenses: Sequence[LensModel], sizes: Sequence[tuple[int, int]]) -
 # ---------------------------------------------------------------- camera-intrinsic-model-rs
 
 
+_CIM: dict[str, tuple[type[EUCM] | type[FieldOfView], tuple[str, ...]]] = {
+    "EUCM": (EUCM, ("fx", "fy", "cx", "cy", "alpha", "beta")),
+    "FovCamera": (FieldOfView, ("fx", "fy", "cx", "cy", "w")),
+}
+
+
 def parse_cim(doc: Any, source: str) -> Imported:
-    """camera-intrinsic-model-rs JSON (``{"EUCM": {fx, fy, cx, cy, alpha, beta, width,
-    height}}``) -> :class:`EUCM`. Its other models (e.g. ``FovCamera``) are not read."""
+    """camera-intrinsic-model-rs JSON -> :class:`EUCM` (``{"EUCM": {fx, fy, cx, cy, alpha,
+    beta, width, height}}``) or :class:`FieldOfView` (``{"FovCamera": {fx, fy, cx, cy, w,
+    width, height}}``). Its other models (KB4, UCM, OpenCV5, ...) are not read.
+
+    The parameters are taken as written (pixel centres at integers). Its TUM monoVO FOV
+    file is DSO's relative calibration times the image size without DSO's -0.5 px
+    shift of cx and cy (docs/fisheye-import.md)."""
     if not isinstance(doc, Mapping) or len(doc) != 1:
         raise _fail(source, "not a camera-intrinsic-model file (one model key expected)")
     ((kind, params),) = doc.items()
-    if kind != "EUCM":
-        raise _fail(source, f"model {kind!r} is not read (known: EUCM)")
+    if kind not in _CIM:
+        raise _fail(source, f"model {kind!r} is not read (known: {', '.join(_CIM)})")
+    cls, keys = _CIM[kind]
     p = f"{kind}."
-    v = {k: _num(params, k, source, p) for k in ("fx", "fy", "cx", "cy", "alpha", "beta")}
+    v = {k: _num(params, k, source, p) for k in keys}
     size = _size(_get(params, "width", source, p), _get(params, "height", source, p), source, p)
-    return Imported(EUCM(**v), size, "cim")
+    return Imported(cls(**v), size, "cim")
 
 
 # ---------------------------------------------------------------- OpenCV FileStorage
@@ -663,6 +754,8 @@ def detect_format(path: Path) -> Format:
         except json.JSONDecodeError:
             return "opencv"
         if isinstance(doc, Mapping):
+            if all(k in doc for k in PYOCAMCALIB_KEYS):
+                return "pyocamcalib"
             if "value0" in doc or "intrinsics" in doc:
                 return "basalt"
             if len(doc) == 1 and isinstance(next(iter(doc.values())), Mapping):
@@ -696,6 +789,8 @@ def import_calibration(
     with _model_errors(source):
         if fmt == "ocamcalib":
             return parse_ocamcalib(read_text(path), source)
+        if fmt == "pyocamcalib":
+            return parse_pyocamcalib(read_json(path), source)
         if fmt == "kalibr":
             return parse_kalibr(read_yaml(path), source, camera)
         if fmt == "basalt":
