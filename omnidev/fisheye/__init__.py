@@ -2,7 +2,7 @@
 
 - ``models``: the lens models (Kannala-Brandt KB4, unified/Mei, the ideal
   equidistant/equisolid/stereographic/orthographic lenses, Scaramuzza/OCamCalib,
-  double sphere, EUCM), pure numpy: optical-frame rays <-> pixels with validity
+  double sphere, EUCM, FOV), pure numpy: optical-frame rays <-> pixels with validity
   masks, fields of view beyond 180 degrees included.
 - ``camera``: :class:`~omnidev.fisheye.camera.FisheyeCamera`, a lens plus a mount
   (how the optical axis sits in omnidev's z-up camera frame): an
