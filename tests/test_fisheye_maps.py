@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import cv2
@@ -166,6 +167,19 @@ def test_max_angle_deg_limits_the_fast_maps_as_the_reference():
     ang = _angle_from_axis_deg(camera, view.points())
     assert np.all(ang[fast.valid] <= 70.0 + 1e-4)
     assert np.all(fast.valid[ang < 69.9])  # the whole 70-degree disc lies on the image
+
+
+def test_fov_fast_maps_stop_at_90_degrees_and_at_max_angle_deg():
+    # TUM monoVO's lens centred in a 1600 px square: the 90-degree circle (752 px) fits
+    lens, size = dataclasses.replace(LENSES["fov"][0], cx=799.5, cy=799.5), (1600, 1600)
+    view = Equirectangular(360, 180)
+    for limit in (None, 60.0):
+        camera = FisheyeCamera(lens, size, MOUNTS["up"], max_angle_deg=limit)
+        fast, ref = view_maps(camera, view), reference_maps(camera, view)
+        assert (fast.valid != ref.valid).sum() <= 2
+        ang = _angle_from_axis_deg(camera, view.points())
+        top = 90.0 if limit is None else limit
+        assert np.all(ang[fast.valid] < top + 1e-4) and fast.valid[ang < top - 0.1].all()
 
 
 # ---------------------------------------------------------------- against OpenCV
