@@ -53,7 +53,9 @@ def register_fisheye(csub: Any) -> None:
         "--mount",
         choices=tuple(MOUNTS),
         default="up",
-        help="how the optical axis sits in omnidev's z-up frame (default up)",
+        help="how the optical axis sits in omnidev's z-up frame: up (default, a lens "
+        "looking at the sky), down, forward (a camera looking ahead: perspective views "
+        "with pan=0,tilt=0 look through the lens centre), mirror-up/-down (docs/fisheye.md)",
     )
     p.add_argument("-o", "--output", type=Path, required=True, help="camera file (.yml)")
     p.add_argument("--plot", type=Path, help="per-view error plot (PNG)")
