@@ -17,6 +17,7 @@ raise :class:`YamlError` with the line number.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from typing import Any
 
 
@@ -119,10 +120,11 @@ def _logical_lines(text: str) -> list[tuple[int, int, str]]:
     return out
 
 
-def _split_flow(body: str, line: int) -> list[str]:
-    """Split the inside of a flow collection at top-level commas."""
-    parts, depth, quote, start = [], 0, "", 0
-    for i, ch in enumerate(body):
+def _top_level(text: str) -> Iterator[int]:
+    """Indices of the characters of ``text`` outside quotes and brackets."""
+    quote = ""
+    depth = 0
+    for i, ch in enumerate(text):
         if quote:
             if ch == quote:
                 quote = ""
@@ -132,7 +134,15 @@ def _split_flow(body: str, line: int) -> list[str]:
             depth += 1
         elif ch in "]}":
             depth -= 1
-        elif ch == "," and depth == 0:
+        elif depth == 0:
+            yield i
+
+
+def _split_flow(body: str, line: int) -> list[str]:
+    """Split the inside of a flow collection at top-level commas."""
+    parts, start = [], 0
+    for i in _top_level(body):
+        if body[i] == ",":
             parts.append(body[start:i])
             start = i + 1
     parts.append(body[start:])
@@ -146,19 +156,8 @@ def _split_flow(body: str, line: int) -> list[str]:
 
 def _key_split(text: str) -> tuple[str, str] | None:
     """``key: rest`` -> (key, rest); None if ``text`` is not a mapping entry."""
-    quote = ""
-    depth = 0
-    for i, ch in enumerate(text):
-        if quote:
-            if ch == quote:
-                quote = ""
-        elif ch in "'\"":
-            quote = ch
-        elif ch in "[{":
-            depth += 1
-        elif ch in "]}":
-            depth -= 1
-        elif ch == ":" and depth == 0 and (i + 1 == len(text) or text[i + 1] == " "):
+    for i in _top_level(text):
+        if text[i] == ":" and (i + 1 == len(text) or text[i + 1] == " "):
             return text[:i].strip(), text[i + 1 :].strip()
     return None
 
