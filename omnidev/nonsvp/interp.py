@@ -33,6 +33,7 @@ docs/nonsvp-interpolation.md gives the reasoning):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -308,7 +309,7 @@ def _grow(
     big_m: NDArray[np.float32],
     window: int,
     max_window: int,
-    ring_fn: object,
+    ring_fn: Callable[..., tuple[NDArray[np.float32], NDArray[np.float32]]],
 ) -> None:
     """Fill in place the rows of vals with no support (big_m == 0) by growing the window.
 
@@ -316,7 +317,6 @@ def _grow(
     no support in the smaller window has all its support in that ring, so only the
     ring is visited. Beyond max_window the nearest filled pixel's value is used.
     """
-    assert callable(ring_fn)
     todo = np.flatnonzero(big_m <= 0.5)
     radius = window // 2
     while todo.size and 2 * (radius + 1) + 1 <= max_window:
