@@ -16,8 +16,8 @@ import cv2
 import numpy as np
 
 from omnidev.camera import Remapper, build_maps
-from omnidev.panotable import calibrate
-from omnidev.panotable_file import PanoTableCamera
+from omnidev.panotable.camfile import PanoTableCamera
+from omnidev.panotable.table import calibrate
 from omnidev.views import Panorama
 
 SIZE = 1920

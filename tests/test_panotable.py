@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from omnidev.errors import CalibrationError, OutputError
-from omnidev.panotable import (
+from omnidev.panotable.camfile import PanoTableCamera, load_table, save_table
+from omnidev.panotable.table import (
     PanoTable,
     calibrate,
     dissertation_plane_angles,
@@ -16,7 +17,6 @@ from omnidev.panotable import (
     fit_radial,
     radial,
 )
-from omnidev.panotable_file import PanoTableCamera, load_table, save_table
 from omnidev.views import PlaneView, azimuth_elevation
 
 A, B = 28.1, 23.4

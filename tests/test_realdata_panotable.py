@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from omnidev.camera import build_maps, unwarp
-from omnidev.panotable import calibrate
-from omnidev.panotable_file import PanoTableCamera
+from omnidev.panotable.camfile import PanoTableCamera
+from omnidev.panotable.table import calibrate
 from omnidev.views import Panorama, azimuth_elevation
 from tests.conftest import REPO
 from tests.ocam import load_corners, ocam_project

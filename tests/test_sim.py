@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from omnidev.omnicenter import detect_omni_circles
+from omnidev.panotable.center import detect_omni_circles
 from omnidev.sim import (
     EquidistantFisheyeCamera,
     RoomScene,

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from omnidev.camera import Maps, build_maps, unwarp
-from omnidev.panotable import calibrate
-from omnidev.panotable_file import PanoTableCamera
+from omnidev.panotable.camfile import PanoTableCamera
+from omnidev.panotable.table import calibrate
 from omnidev.sim import (
     EquidistantFisheyeCamera,
     RoomScene,

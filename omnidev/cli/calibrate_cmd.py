@@ -11,12 +11,12 @@ import cv2
 import numpy as np
 
 from omnidev.atomic import check_output
-from omnidev.cli.options import parse_size
+from omnidev.cli.options import parse_floats, parse_size
 from omnidev.errors import CalibrationError
-from omnidev.landmarks import parse_floats, read_landmarks_csv
-from omnidev.omnicenter import detect_omni_circles
-from omnidev.panotable import calibrate
-from omnidev.panotable_file import save_table
+from omnidev.panotable.camfile import save_table
+from omnidev.panotable.center import detect_omni_circles
+from omnidev.panotable.landmarks import read_landmarks_csv
+from omnidev.panotable.table import calibrate
 
 
 def register(sub: Any) -> None:
@@ -150,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
         f"{math.degrees(t.rho_range[1]):.2f} deg"
     )
     save_table(out, calib, force=args.force)
-    from omnidev.plots import plot_radial_fit
+    from omnidev.panotable.plots import plot_radial_fit
 
     plot_radial_fit(calib, plot, force=args.force)
     print(f"wrote {out}")

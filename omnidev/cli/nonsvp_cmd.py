@@ -14,9 +14,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from omnidev.cli.options import parse_size
+from omnidev.cli.options import parse_floats, parse_size
 from omnidev.errors import OmnidevError
-from omnidev.landmarks import parse_floats
 
 
 def register(sub: Any) -> None:

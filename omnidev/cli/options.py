@@ -1,10 +1,11 @@
-"""``KEY=VALUE`` command-line options shared by the subcommands."""
+"""Command-line option parsing shared by the subcommands: KEY=VALUE items, sizes, numbers."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
-from omnidev.errors import OmnidevError
+from omnidev.errors import CalibrationError, OmnidevError
 
 
 def key_values(items: list[str], flag: str) -> dict[str, str]:
@@ -42,3 +43,17 @@ def parse_size(text: str, what: str = "--size", minimum: int = 1) -> tuple[int, 
     if w < minimum or h < minimum:
         raise OmnidevError(f"{what} {text!r}: at least {minimum}x{minimum}")
     return w, h
+
+
+def parse_floats(text: str, n: int, what: str) -> tuple[float, ...]:
+    """Parse ``"a,b[,c]"`` into n finite floats; error names ``what``."""
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        vals = tuple(float(p) for p in parts)
+    except ValueError:
+        raise CalibrationError(
+            f"{what} must be {n} comma-separated numbers, got {text!r}"
+        ) from None
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise CalibrationError(f"{what} must be {n} comma-separated finite numbers, got {text!r}")
+    return vals

@@ -11,8 +11,7 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from omnidev.cli.options import parse_size
-from omnidev.landmarks import parse_floats
+from omnidev.cli.options import parse_floats, parse_size
 
 
 def register_nonsvp(ssub: Any) -> None:

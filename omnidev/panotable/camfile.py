@@ -18,7 +18,7 @@ import numpy as np
 from omnidev.calibfile import check_header, open_storage, read_mat, read_real, write_storage
 from omnidev.camera import BoolArray, FloatArray
 from omnidev.errors import CalibrationError
-from omnidev.panotable import LOOKUPS, Calibration, Lookup, PanoTable
+from omnidev.panotable.table import LOOKUPS, Calibration, Lookup, PanoTable
 from omnidev.views import azimuth_elevation
 
 KIND = "pano-table"

@@ -72,17 +72,3 @@ def read_landmarks_csv(path: Path) -> Landmarks:
         raise CalibrationError(f"{path}: no landmark rows after the header")
     arr = np.array(values, np.float64)
     return Landmarks(arr[:, :2], arr[:, 2:], tuple(rows))
-
-
-def parse_floats(text: str, n: int, what: str) -> tuple[float, ...]:
-    """Parse ``"a,b[,c]"`` into n finite floats; error names ``what``."""
-    parts = [p.strip() for p in text.split(",")]
-    try:
-        vals = tuple(float(p) for p in parts)
-    except ValueError:
-        raise CalibrationError(
-            f"{what} must be {n} comma-separated numbers, got {text!r}"
-        ) from None
-    if len(vals) != n or not all(math.isfinite(v) for v in vals):
-        raise CalibrationError(f"{what} must be {n} comma-separated finite numbers, got {text!r}")
-    return vals

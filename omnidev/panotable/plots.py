@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from omnidev.atomic import atomic_path
-from omnidev.panotable import Calibration, radial
+from omnidev.panotable.table import Calibration, radial
 
 
 def plot_radial_fit(calib: Calibration, path: Path, *, force: bool = False) -> None:
