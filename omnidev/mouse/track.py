@@ -46,6 +46,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from omnidev.mouse.flow import PlaneFlow, apply_h, frame_homography
+
 BARS = 8
 
 
@@ -453,6 +455,11 @@ class LandmarkTracker:
     radius: float = 0.0
     radii: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))
     found: list[bool] = field(default_factory=lambda: [False] * 4)
+    flow: PlaneFlow = field(default_factory=PlaneFlow)
+    flow_tol: float = 0.6
+    ref_centers: NDArray[np.float64] | None = None
+    prev_gray: NDArray[np.uint8] | None = None
+    predicted_by: str = ""
 
     def lock(self, centers: NDArray[np.float64], radius: float | NDArray[np.float64]) -> None:
         """Start tracking from the detection stage's four centers (TL, TR, BR, BL)."""
@@ -462,6 +469,7 @@ class LandmarkTracker:
         self.radius = statistics.median(self.radii.tolist())
         self.found = [True] * 4
         self.contrast = 0.0
+        self.flow.stop()
 
     def _outliers(
         self, new: NDArray[np.float64], found: list[bool], guess: NDArray[np.float64]
@@ -526,20 +534,9 @@ class LandmarkTracker:
             dropped += [i for i in back if abs(a * zo[i] + b - zn[i]) > self.back_tol * tol]
         return dropped
 
-    def update(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
-        """The four centers in this frame (missing ones predicted), or None on failure.
-
-        None (three or more landmarks missing, or never locked) means: hold the
-        last cursor and run the detection stage again.
-        """
-        if self.centers is None:
-            return None
-        # Beyond the dissertation (which centres each window on the last position):
-        # centre it where the last frame-to-frame move carries the landmark, so a
-        # fast sweep does not leave the window or land on the bezel next to it.
-        guess = self.centers
-        if self.motion and self.previous is not None:
-            guess = self.centers + (self.centers - self.previous)
+    def _search(self, gray: NDArray[np.uint8], guess: NDArray[np.float64]) -> list[Circle | None]:
+        """The template's best circle in each window centred at ``guess`` (4, 2), None
+        where it falls short of the contrast floors."""
         hits = [
             track_circle(
                 gray,
@@ -554,10 +551,57 @@ class LandmarkTracker:
         # A landmark cut by the image border still half-fits the template: a hit
         # must reach a good part of the contrast the landmarks had so far.
         floor = self.relative_contrast * self.contrast
-        hits = [h if h is not None and h.contrast >= floor else None for h in hits]
+        return [h if h is not None and h.contrast >= floor else None for h in hits]
+
+    def _plane_guess(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
+        """Where the monitor plane's frame-to-frame homography carries the last centres."""
+        assert self.prev_gray is not None and self.centers is not None
+        Hff = frame_homography(self.prev_gray, gray, self.centers)
+        return None if Hff is None else apply_h(Hff, self.centers)
+
+    def update(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
+        """The four centers in this frame (missing ones predicted), or None on failure.
+
+        None (three or more landmarks missing, or never locked) means: hold the
+        last cursor and run the detection stage again.
+        """
+        if self.centers is None:
+            return None
+        # Beyond the dissertation (which centres each window on the last position):
+        # centre it where the last frame-to-frame move carries the landmark, so a
+        # fast sweep does not leave the window or land on the bezel next to it.
+        guess = self.centers
+        if self.motion and self.previous is not None:
+            guess = self.centers + (self.centers - self.previous)
+        # Beyond it again (predict="flow"): when the hand moves fast or a landmark is
+        # missing, the monitor plane's frame-to-frame homography from tracked features
+        # places the windows (a sweep's acceleration defeats the constant-velocity guess)
+        # and judges the hits (a blurred impostor is not where the plane went).
+        plane_guess: NDArray[np.float64] | None = None
+        use_flow = self.predict == "flow" and self.prev_gray is not None
+        if use_flow:
+            assert self.prev_gray is not None
+            step = 0.0
+            if self.previous is not None:
+                step = float(np.median(np.linalg.norm(self.centers - self.previous, axis=1)))
+            if step > max(3.0, 0.5 * self.radius) or not all(self.found):
+                plane_guess = self._plane_guess(gray)
+                if plane_guess is not None:
+                    guess = plane_guess
+        hits = self._search(gray, guess)
+        if use_flow and plane_guess is None:
+            # the hits say the hand jerked (or some are missing): look again where the
+            # monitor plane went
+            jump = [h is None or math.hypot(h.x - g[0], h.y - g[1]) > max(3.0, 0.5 * self.radius)
+                    for h, g in zip(hits, guess, strict=True)]  # fmt: skip
+            if any(jump):
+                plane_guess = self._plane_guess(gray)
+                if plane_guess is not None:
+                    hits = self._search(gray, plane_guess)
         found = [h is not None for h in hits]
         if sum(found) < 2:
             self.found = found
+            self.prev_gray = gray
             return None
         if self.refine:
             disc = [None] * 4 if self.disc_radii is None else list(self.disc_radii)
@@ -575,15 +619,68 @@ class LandmarkTracker:
         for i, h in enumerate(hits):
             if h is not None:
                 new[i] = (h.x, h.y)
+        if plane_guess is not None:
+            moved = float(np.median(np.linalg.norm(plane_guess - self.centers, axis=1)))
+            tol = max(3.0, self.flow_tol * self.radius) + 0.1 * moved
+            for i in range(4):
+                if found[i] and float(np.hypot(*(new[i] - plane_guess[i]))) > tol:
+                    found[i], hits[i], new[i] = False, None, self.centers[i]
+            if sum(found) < 2:
+                self.found = found
+                self.prev_gray = gray
+                return None
         if self.consistency:
             for i in self._outliers(new, found, guess):
                 found[i], hits[i], new[i] = False, None, self.centers[i]
+        if self.predict == "flow" and self.flow.active and self.ref_centers is not None:
+            # the monitor plane's own motion judges the landmarks found: one that is
+            # not where the plane carried it (a blurred impostor) is dropped
+            self.flow.step(gray)
+            Hf = self.flow.fit(np.zeros((0, 2)), np.zeros((0, 2)))
+            if Hf is not None:
+                pred = apply_h(Hf, self.ref_centers)
+                moved = float(np.median(np.linalg.norm(pred - self.centers, axis=1)))
+                tol = max(3.0, self.flow_tol * self.radius) + 0.1 * moved
+                for i in range(4):
+                    if found[i] and float(np.hypot(*(new[i] - pred[i]))) > tol:
+                        found[i], hits[i], new[i] = False, None, self.centers[i]
+                if sum(found) < 2:
+                    self.found = found
+                    self.prev_gray = gray
+                    return None
         moves = [
             (h.x - self.centers[i, 0], h.y - self.centers[i, 1])
             for i, h in enumerate(hits)
             if h is not None
         ]
         missing = [i for i, ok in enumerate(found) if not ok]
+        self.predicted_by = ""
+        if missing and self.predict == "flow":
+            # the homography of the monitor plane from the reference frame (the last
+            # one before a landmark went missing), fitted to tracked features and the
+            # landmarks still found, carries the missing ones
+            if not self.flow.active and self.prev_gray is not None:
+                self.flow.start(self.prev_gray, self.centers)
+                self.ref_centers = self.centers.copy()
+                self.flow.step(gray)
+            if self.flow.active and self.ref_centers is not None:
+                idx = [i for i, ok in enumerate(found) if ok]
+                H = self.flow.fit(self.ref_centers[idx], new[idx])
+                if H is not None:
+                    new[missing] = apply_h(H, self.ref_centers[missing])
+                    self.flow.replenish(gray, new)
+                    missing = []
+                    self.predicted_by = "flow"
+            if missing and self.focal_px:  # too few features: the camera's turn
+                idx = [i for i, ok in enumerate(found) if ok]
+                R = rotation_between(self.centers[idx], new[idx], self.focal_px, self.principal)
+                new[missing] = rotate_points(
+                    self.centers[missing], R, self.focal_px, self.principal
+                )
+                missing = []
+                self.predicted_by = "rotation"
+        elif self.predict == "flow":
+            self.flow.stop()
         if missing and self.predict == "similarity":
             # rotation, scale and shift of the found landmarks since the last frame
             # (exact for motion parallel to the screen), applied to the missing ones
@@ -624,4 +721,5 @@ class LandmarkTracker:
         )
         self.previous, self.centers = self.centers, new
         self.found = found
+        self.prev_gray = gray
         return new.copy()

@@ -47,7 +47,7 @@ from omnidev.mouse.geometry import cursor_from_corners, image_center, screen_cor
 from omnidev.mouse.landmarks import LandmarkLayout
 from omnidev.mouse.track import LandmarkTracker
 
-PREDICTIONS = ("rotation", "similarity", "translation")
+PREDICTIONS = ("flow", "rotation", "similarity", "translation")
 
 
 class CameraMouse:
