@@ -97,6 +97,10 @@ class DetectParams:
             max(``max_border_offset_px``, ``border_band_frac`` x the landmark-to-border
             distance) around the screen border the group predicts) or the
             dissertation's "side" (from the landmark side inwards).
+        min_border_step: with "predicted", a side votes only when the colour changes
+            across the predicted border: the median over points along it of the largest
+            channel difference between both sides must reach this many grey levels
+            (edges of sensor noise on a plain wall do not; 0 turns it off).
         threshold_mode: "adaptive" (darker than the local mean by ``adaptive_c`` grey
             levels over windows of ``block_fracs`` x the image's smaller side) or the
             dissertation's "fixed" (``threshold``).
@@ -133,6 +137,7 @@ class DetectParams:
     refine: bool = True
     threshold_mode: str = "adaptive"
     border_search: str = "predicted"
+    min_border_step: float = 12.0
     border_band_frac: float = 0.3
     block_fracs: tuple[float, ...] = (0.06, 0.2)
     adaptive_c: float = 12.0
@@ -577,6 +582,18 @@ def detect_landmarks(
                 # a band around the screen border where the group puts it (the bezel's
                 # outer edge, between an overhanging card and the screen, stays out)
                 a, b = screen[i], screen[(i + 1) % 4]
+                if params.min_border_step > 0 and not _border_step(
+                    image,
+                    a,
+                    b,
+                    max(2.0, params.border_band_frac * inset_mm[i] * px_per_mm),
+                    params,
+                ):
+                    weak += 1  # no change of colour across the border: no vote
+                    if weak > 4 - params.min_border_sides:
+                        break
+                    strengths.append(0.0)
+                    continue
                 band = max(
                     params.max_border_offset_px, params.border_band_frac * inset_mm[i] * px_per_mm
                 )
@@ -713,6 +730,36 @@ def _area_scale(
         J = (Hm[:2, :2] * w[k] - np.outer(v[k, :2], Hm[2, :2])) / w[k] ** 2
         out[k] = abs(np.linalg.det(J))
     return out
+
+
+def _border_step(
+    image: NDArray[np.uint8],
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    offset: float,
+    params: DetectParams,
+) -> bool:
+    """Whether the colour changes across the segment a -> b (px): points along it (the
+    ``end_margin`` left out at both ends), sampled ``offset`` px to both sides; the median
+    of the largest channel difference reaches ``params.min_border_step``."""
+    v = b - a
+    n = float(np.hypot(*v))
+    if n < 4:
+        return False
+    t = v / n
+    nrm = np.array([-t[1], t[0]])
+    s = np.linspace(params.end_margin, 1 - params.end_margin, 24)[:, None]
+    pts = a + s * v
+    h, w = image.shape[:2]
+    img = image if image.ndim == 3 else image[..., None]
+
+    def sample(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        x = np.clip(np.round(q[:, 0]).astype(np.intp), 0, w - 1)
+        y = np.clip(np.round(q[:, 1]).astype(np.intp), 0, h - 1)
+        return img[y, x].astype(np.float64)
+
+    d = np.abs(sample(pts + offset * nrm) - sample(pts - offset * nrm)).max(axis=1)
+    return bool(np.median(d) >= params.min_border_step)
 
 
 def _inset(

@@ -423,6 +423,23 @@ def _disc_mask(R: int, radius: float) -> NDArray[np.float32]:
     return m
 
 
+def _off_plane(
+    new: NDArray[np.float64], found: list[bool], pred: NDArray[np.float64], tol: float
+) -> list[int]:
+    """Found landmarks (indices) to drop as not where the monitor plane's motion put them.
+
+    A hit farther than ``tol`` px from its prediction ``pred`` (4, 2) is taken for an
+    impostor. (Accepting hits that share one offset from a drifted prediction found
+    more landmarks again but let impostors through on the tuning seeds: refused.)
+    """
+    idx = [i for i in range(4) if found[i]]
+    dev = new - pred
+    far = [i for i in idx if float(np.hypot(*dev[i])) > tol]
+    if not far:
+        return []
+    return far
+
+
 @dataclass
 class LandmarkTracker:
     """Tracks the four landmarks (TL, TR, BR, BL) frame to frame with prediction.
@@ -456,10 +473,12 @@ class LandmarkTracker:
     radii: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))
     found: list[bool] = field(default_factory=lambda: [False] * 4)
     flow: PlaneFlow = field(default_factory=PlaneFlow)
-    flow_tol: float = 0.6
+    flow_tol: float = 0.8
     ref_centers: NDArray[np.float64] | None = None
     prev_gray: NDArray[np.uint8] | None = None
     predicted_by: str = ""
+    coast_frames: int = 60
+    coasting: int = 0
 
     def lock(self, centers: NDArray[np.float64], radius: float | NDArray[np.float64]) -> None:
         """Start tracking from the detection stage's four centers (TL, TR, BR, BL)."""
@@ -470,6 +489,7 @@ class LandmarkTracker:
         self.found = [True] * 4
         self.contrast = 0.0
         self.flow.stop()
+        self.coasting = 0
 
     def _outliers(
         self, new: NDArray[np.float64], found: list[bool], guess: NDArray[np.float64]
@@ -553,6 +573,42 @@ class LandmarkTracker:
         floor = self.relative_contrast * self.contrast
         return [h if h is not None and h.contrast >= floor else None for h in hits]
 
+    def _coast(
+        self, gray: NDArray[np.uint8], found: list[bool], new: NDArray[np.float64] | None
+    ) -> None:
+        """Fewer than two landmarks found: no cursor (the dissertation's hold). With
+        ``predict="flow"`` the four positions keep following the monitor plane's image
+        motion for up to ``coast_frames`` frames (``coasting`` counts them), so that
+        landmarks coming back are tracked where they reappear without waiting for all
+        four (the detection stage needs them all); otherwise, or when the plane's
+        features give out, the lock is lost (``coasting`` = 0)."""
+        self.found = found
+        prev = self.prev_gray
+        self.prev_gray = gray
+        if self.predict != "flow" or prev is None or self.centers is None:
+            self.coasting = 0
+            return None
+        if self.coasting >= self.coast_frames:
+            self.coasting = 0
+            return None
+        if not self.flow.active:
+            self.flow.start(prev, self.centers)
+            self.ref_centers = self.centers.copy()
+            self.flow.step(gray)
+        elif self.flow.gray is not gray:
+            self.flow.step(gray)
+        assert self.ref_centers is not None
+        idx = [i for i, ok in enumerate(found) if ok and new is not None]
+        H = self.flow.fit(self.ref_centers[idx], new[idx] if new is not None else np.zeros((0, 2)))
+        if H is None:
+            self.coasting = 0
+            return None
+        pred = apply_h(H, self.ref_centers)
+        self.previous, self.centers = self.centers, pred
+        self.flow.replenish(gray, pred)
+        self.coasting += 1
+        return None
+
     def _plane_guess(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
         """Where the monitor plane's frame-to-frame homography carries the last centres."""
         assert self.prev_gray is not None and self.centers is not None
@@ -600,8 +656,7 @@ class LandmarkTracker:
                     hits = self._search(gray, plane_guess)
         found = [h is not None for h in hits]
         if sum(found) < 2:
-            self.found = found
-            self.prev_gray = gray
+            self._coast(gray, found, None)
             return None
         if self.refine:
             disc = [None] * 4 if self.disc_radii is None else list(self.disc_radii)
@@ -621,13 +676,11 @@ class LandmarkTracker:
                 new[i] = (h.x, h.y)
         if plane_guess is not None:
             moved = float(np.median(np.linalg.norm(plane_guess - self.centers, axis=1)))
-            tol = max(3.0, self.flow_tol * self.radius) + 0.1 * moved
-            for i in range(4):
-                if found[i] and float(np.hypot(*(new[i] - plane_guess[i]))) > tol:
-                    found[i], hits[i], new[i] = False, None, self.centers[i]
+            tol = max(5.0, self.flow_tol * self.radius) + 0.1 * moved
+            for i in _off_plane(new, found, plane_guess, tol):
+                found[i], hits[i], new[i] = False, None, self.centers[i]
             if sum(found) < 2:
-                self.found = found
-                self.prev_gray = gray
+                self._coast(gray, found, new)
                 return None
         if self.consistency:
             for i in self._outliers(new, found, guess):
@@ -640,13 +693,11 @@ class LandmarkTracker:
             if Hf is not None:
                 pred = apply_h(Hf, self.ref_centers)
                 moved = float(np.median(np.linalg.norm(pred - self.centers, axis=1)))
-                tol = max(3.0, self.flow_tol * self.radius) + 0.1 * moved
-                for i in range(4):
-                    if found[i] and float(np.hypot(*(new[i] - pred[i]))) > tol:
-                        found[i], hits[i], new[i] = False, None, self.centers[i]
+                tol = max(5.0, self.flow_tol * self.radius) + 0.1 * moved
+                for i in _off_plane(new, found, pred, tol):
+                    found[i], hits[i], new[i] = False, None, self.centers[i]
                 if sum(found) < 2:
-                    self.found = found
-                    self.prev_gray = gray
+                    self._coast(gray, found, new)
                     return None
         moves = [
             (h.x - self.centers[i, 0], h.y - self.centers[i, 1])
@@ -722,4 +773,5 @@ class LandmarkTracker:
         self.previous, self.centers = self.centers, new
         self.found = found
         self.prev_gray = gray
+        self.coasting = 0
         return new.copy()

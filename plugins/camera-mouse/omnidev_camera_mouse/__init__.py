@@ -110,6 +110,16 @@ class CameraMouse:
             last = self.tracker.centers
             centers = self.tracker.update(gray)
             if centers is None:
+                if self.tracker.coasting:
+                    # held; the landmarks follow the monitor's image motion, and the
+                    # detection stage looks for all four now and then
+                    if self.redetect_every and self.tracker.coasting % self.redetect_every == 0:
+                        det = detect_landmarks(frame.image, self.layout)
+                        if det is not None:
+                            self.tracker.lock(det.centers, self._radius_px(det.centers))
+                            self.relocks += 1
+                            return self._sample(frame, det.centers, w, h)
+                    return None
                 self.locked = False  # three or more missing: detect again next frame
                 return None
             if not _plausible(centers, last, self.tracker.radius):
@@ -135,6 +145,12 @@ class CameraMouse:
             self.locked = True
             self._weak = 0
         assert centers is not None
+        return self._sample(frame, centers, w, h)
+
+    def _sample(
+        self, frame: Frame, centers: NDArray[np.float64], w: int, h: int
+    ) -> PointerSample | None:
+        """The cursor sample of the landmark centres (TL, TR, BR, BL, px) of ``frame``."""
         # the discs' radii from the landmark geometry, for next frame's sub-pixel step
         self.tracker.disc_radii = self._radius_px(centers)
         corners = screen_corners_from_landmarks(centers, self.layout)
