@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -52,7 +53,7 @@ from numpy.typing import NDArray
 
 from omnidev.mouse.landmarks import LandmarkLayout
 from omnidev.sim.handcam import HandCamera
-from omnidev.sim.handheld_path import Path, draw_path, look_at_many
+from omnidev.sim.handheld_path import Trajectory, draw_path, look_at_many
 from omnidev.sim.handheld_textures import (
     SCREEN_KINDS,
     lookalike,
@@ -124,7 +125,7 @@ class HandheldVideo:
     frames: int
     camera: HandCamera
     imaging: Imaging
-    path: Path
+    path: Trajectory
     monitor: Monitor | None  # None for the no-monitor and look-alike kinds
     layout: LandmarkLayout  # what the tracker is given (the virtual one without a monitor)
     wall_z: float
@@ -899,3 +900,46 @@ class HandheldRenderer:
             "distance_m": round(float(np.linalg.norm(aim[0] - camc[0])), 4),
             "segment": seg[-1] if seg else "dwell",
         }
+
+
+def write_video(
+    seed: int, outdir: Path, *, frames: int = 300, force: bool = False
+) -> dict[str, Any]:
+    """Render video ``seed`` into ``outdir`` atomically, as the fixtures of
+    :mod:`omnidev.sim.monitor` are laid out (``omnidev mouse-eval`` reads it):
+    ``mouse.avi`` (MJPG, quality 95, of the frames the webcam delivered),
+    ``truth.json`` (the drawn parameters under ``video`` and the per-frame truth) and
+    ``landmarks.json`` (the layout). Returns what truth.json holds."""
+    import json
+
+    from omnidev.atomic import atomic_dir, check_output_dir
+    from omnidev.errors import OutputError
+
+    outdir = Path(outdir)
+    check_output_dir(outdir, force=force)
+    video = draw_video(seed, frames=frames)
+    r = HandheldRenderer(video)
+    cam = video.camera
+    with atomic_dir(outdir, force=force) as tmp:
+        size = (cam.width, cam.height)
+        vw = cv2.VideoWriter(
+            str(tmp / "mouse.avi"), cv2.VideoWriter.fourcc(*"MJPG"), video.imaging.fps, size
+        )
+        if not vw.isOpened():
+            raise OutputError(f"cannot write MJPG video in {tmp}")
+        vw.set(cv2.VIDEOWRITER_PROP_QUALITY, 95)
+        per_frame = []
+        for i in range(frames):
+            vw.write(r.render(i))
+            per_frame.append(r.truth(i))
+        vw.release()
+        doc = {
+            "video": video.describe(),
+            "camera": {"width": cam.width, "height": cam.height},
+            "per_frame": per_frame,
+            "regenerate": f"omnidev eval mouse --scene-seed {seed} --opt frames={frames} "
+            "--write DIR",
+        }
+        (tmp / "truth.json").write_text(json.dumps(doc, indent=1) + "\n")
+        (tmp / "landmarks.json").write_text(json.dumps(video.layout_dict(), indent=2) + "\n")
+    return doc

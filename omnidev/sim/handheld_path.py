@@ -5,7 +5,7 @@ z = 0 with the lit area [0, W] x [0, H] (x right, y down), z into the screen; th
 camera is at z < 0. A trajectory is a list of keyframes (time, aim point on the plane
 z = 0, camera centre, roll) joined by minimum-jerk moves (a hand moves, then rests),
 plus a slow sway of the aim and the camera and physiological tremor (8-12 Hz) of the
-aim. :meth:`Path.poses` evaluates it at any times, vectorized.
+aim. :meth:`Trajectory.poses` evaluates it at any times, vectorized.
 
 Segments drawn by :func:`draw_path`: dwell, move, fast sweep (motion blur up to the
 drawn bound), excursion (the aim goes past the screen's edge or corner until 1, 2 or
@@ -29,7 +29,7 @@ SEGMENT_P = (0.18, 0.27, 0.13, 0.18, 0.09, 0.09, 0.06)
 
 
 @dataclass(frozen=True)
-class Path:
+class Trajectory:
     """Keyframes (K,) ``t``, aim (K, 2) on z = 0, camera centre (K, 3), roll (K,) deg;
     sway: (n, 4) rows (freq Hz, amp m, phase x, phase y) for the aim and ``cam_sway``
     the same for the camera centre (m); tremor (n, 4) rows (freq Hz, amp rad, phase x,
@@ -115,7 +115,7 @@ def draw_path(
     exposure_s: float,
     max_blur_px: float,
     count_out: CountOut | None,
-) -> Path:
+) -> Trajectory:
     """A random trajectory over ``duration_s`` seconds (see the module docstring).
 
     ``dist_m``: the starting distance from the screen centre; distance changes stay in
@@ -220,7 +220,7 @@ def draw_path(
     tremor = np.column_stack(
         [rng.uniform(8, 12, n), np.full(n, tremor_amp / n), rng.uniform(0, 6.3, (n, 2))]
     )
-    return Path(
+    return Trajectory(
         np.array(ts),
         np.array(aims),
         np.array(cams),
