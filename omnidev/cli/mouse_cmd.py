@@ -40,7 +40,7 @@ def register(sub: Any) -> None:
         "--fov-deg",
         type=float,
         default=60.0,
-        help="the webcam's horizontal field of view, degrees (for --predict rotation, and flow's fallback)",
+        help="the webcam's horizontal field of view, degrees (--predict rotation; flow's fallback)",
     )
     add_pointer_arguments(p)
     p.set_defaults(func=run)
