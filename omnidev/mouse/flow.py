@@ -133,6 +133,8 @@ class PlaneFlow:
         if len(self.cur):
             d = np.linalg.norm(new[:, None, :] - self.cur[None, :, :], axis=2).min(axis=1)
             new = new[d > 3.0]
+        if not len(new):
+            return
         inv = np.linalg.inv(self.H)
         ref = cv2.perspectiveTransform(new.reshape(-1, 1, 2), inv).reshape(-1, 2)
         self.ref = np.concatenate([self.ref, ref])
