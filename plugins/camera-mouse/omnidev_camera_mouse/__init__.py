@@ -117,8 +117,8 @@ class CameraMouse:
             if centers is None:
                 if self.tracker.coasting:
                     # held; the landmarks follow the monitor's image motion, and the
-                    # detection stage looks for all four now and then
-                    if self.redetect_every and self.tracker.coasting % self.redetect_every == 0:
+                    # detection stage looks for all four on every such frame
+                    if self.redetect_every:
                         det = detect_landmarks(frame.image, self.layout)
                         if det is not None:
                             self.tracker.lock(det.centers, self._radius_px(det.centers))
