@@ -97,10 +97,11 @@ class DetectParams:
             max(``max_border_offset_px``, ``border_band_frac`` x the landmark-to-border
             distance) around the screen border the group predicts) or the
             dissertation's "side" (from the landmark side inwards).
-        min_border_step: with "predicted", a side votes only when the colour changes
-            across the predicted border: the median over points along it of the largest
-            channel difference between both sides must reach this many grey levels
-            (edges of sensor noise on a plain wall do not; 0 turns it off).
+        min_border_step: with "predicted", a side votes only when the colour steps
+            across the predicted border coherently along it: in the channel of the
+            largest mean difference between both sides, the mean reaches this many grey
+            levels and 3/4 of the points agree in sign (edges of sensor noise or of a
+            textured wall do not; 0 turns it off).
         threshold_mode: "adaptive" (darker than the local mean by ``adaptive_c`` grey
             levels over windows of ``block_fracs`` x the image's smaller side) or the
             dissertation's "fixed" (``threshold``).
@@ -739,9 +740,12 @@ def _border_step(
     offset: float,
     params: DetectParams,
 ) -> bool:
-    """Whether the colour changes across the segment a -> b (px): points along it (the
-    ``end_margin`` left out at both ends), sampled ``offset`` px to both sides; the median
-    of the largest channel difference reaches ``params.min_border_step``."""
+    """Whether the colour steps across the segment a -> b (px) the same way along it:
+    24 points (the ``end_margin`` left out at both ends) sampled ``offset`` px to both
+    sides; in the channel with the largest mean difference, the mean reaches
+    ``params.min_border_step`` and three quarters of the points share its sign (a
+    textured wall or noise differs too, but not coherently); and the bezel side is plain
+    (its spread at most 10 grey levels + a quarter of the step)."""
     v = b - a
     n = float(np.hypot(*v))
     if n < 4:
@@ -758,8 +762,13 @@ def _border_step(
         y = np.clip(np.round(q[:, 1]).astype(np.intp), 0, h - 1)
         return img[y, x].astype(np.float64)
 
-    d = np.abs(sample(pts + offset * nrm) - sample(pts - offset * nrm)).max(axis=1)
-    return bool(np.median(d) >= params.min_border_step)
+    outside = sample(pts - offset * nrm)  # the bezel side (nrm points into the screen)
+    d = sample(pts + offset * nrm) - outside  # (24, channels), signed
+    m = d.mean(axis=0)
+    c = int(np.argmax(np.abs(m)))
+    same = float(np.mean(np.sign(d[:, c]) == np.sign(m[c])))
+    flat = float(outside[:, c].std()) <= 10.0 + 0.25 * abs(float(m[c]))  # a bezel is plain
+    return bool(abs(m[c]) >= params.min_border_step and same >= 0.75 and flat)
 
 
 def _inset(
