@@ -16,13 +16,13 @@ import pytest
 
 from omnidev.evaluation.framework import evaluate, load_task
 from omnidev.mouse.detect import detect_landmarks, rigid_plane_error
+from omnidev.mouse.evaluate import cursor_error_px
 from omnidev.mouse.geometry import (
     cursor_homography,
     homography_from_4_points,
     image_center,
     screen_corners_from_landmarks,
 )
-from omnidev.mouse.evaluate import cursor_error_px
 from omnidev.sim.handheld import KINDS, HandheldRenderer, draw_video, write_video
 
 
