@@ -116,8 +116,8 @@ def test_write_video_gives_a_fixture_folder(tmp_path):
 def sample():
     """``omnidev eval mouse`` on seeds 45-49 (tuning range), 60 frames each."""
     task = load_task("mouse")
-    return evaluate(task, scenes=5, seed=45, options={"frames": 60, "configs": "default,translation"},
-                    progress=False)  # fmt: skip
+    opts = {"frames": 60, "configs": "default,translation"}
+    return evaluate(task, scenes=5, seed=45, options=opts, progress=False)
 
 
 def test_eval_sample_no_false_cursors_and_accurate_cursors(sample):
