@@ -116,7 +116,7 @@ def test_write_video_gives_a_fixture_folder(tmp_path):
 def sample():
     """``omnidev eval mouse`` on seeds 45-49 (tuning range), 60 frames each."""
     task = load_task("mouse")
-    opts = {"frames": 60, "configs": "default,translation"}
+    opts = {"frames": 60, "configs": "default,flow,translation"}
     return evaluate(task, scenes=5, seed=45, options=opts, progress=False)
 
 

@@ -33,7 +33,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--predict",
         choices=("flow", "rotation", "similarity", "translation"),
-        default="flow",
+        default="rotation",
         help="how one or two missing landmarks are predicted (translation: the dissertation's)",
     )
     p.add_argument(
@@ -60,7 +60,7 @@ def register(sub: Any) -> None:
     ev.add_argument(
         "--predict",
         choices=("flow", "rotation", "similarity", "translation"),
-        default="flow",
+        default="rotation",
         help="how missing landmarks are predicted (translation: the dissertation's)",
     )
     ev.add_argument("--fov-deg", type=float, default=60.0, help="webcam horizontal field of view")
@@ -182,7 +182,7 @@ def run_landmarks(args: argparse.Namespace) -> int:
 def evaluate_fixture(
     folder: Path,
     method: str,
-    predict: str = "flow",
+    predict: str = "rotation",
     layout: Path | None = None,
     fov_deg: float = 60.0,
 ) -> dict[str, Any]:

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import cv2
@@ -103,8 +103,9 @@ class DetectParams:
             levels and 3/4 of the points agree in sign (edges of sensor noise or of a
             textured wall do not; 0 turns it off).
         threshold_mode: "adaptive" (darker than the local mean by ``adaptive_c`` grey
-            levels over windows of ``block_fracs`` x the image's smaller side) or the
-            dissertation's "fixed" (``threshold``).
+            levels over windows of ``block_fracs`` x the image's smaller side), the
+            dissertation's "fixed" (``threshold``), or "both" (adaptive, then fixed
+            when adaptive finds no group; the default).
         max_area_frac: with "adaptive", regions may cover up to this fraction of the
             image (instead of ``max_area``).
         min_ring_contrast: a region's centre must be this many grey levels darker than
@@ -136,7 +137,7 @@ class DetectParams:
     canny_low: float = 30.0
     canny_high: float = 90.0
     refine: bool = True
-    threshold_mode: str = "adaptive"
+    threshold_mode: str = "both"
     border_search: str = "predicted"
     min_border_step: float = 12.0
     border_band_frac: float = 0.3
@@ -232,7 +233,7 @@ def _regions(
     if params.threshold_mode == "fixed":
         masks = [(gray < params.threshold).astype(np.uint8)]
         max_area = params.max_area
-    elif params.threshold_mode == "adaptive":
+    elif params.threshold_mode in ("adaptive", "both"):
         masks = []
         g = gray.astype(np.float32)
         for frac in params.block_fracs:
@@ -276,9 +277,7 @@ def _regions(
         idx, r, contrast = idx[sel], r[sel], contrast[sel]
     # the regions darkest against their ring first (the largest with a fixed threshold);
     # a blob found at both scales is kept once
-    order = np.argsort(
-        -contrast if params.threshold_mode == "adaptive" else -area[idx], kind="stable"
-    )
+    order = np.argsort(-contrast if params.threshold_mode != "fixed" else -area[idx], kind="stable")
     kept: list[int] = []
     for k in order:
         i = int(idx[k])
@@ -523,6 +522,13 @@ def detect_landmarks(
     of four regions passes the shape checks and the edge-strength floor (no false lock
     with fewer than four landmark-like blobs).
     """
+    if params.threshold_mode == "both":
+        # the dissertation's fixed threshold first, the adaptive one where it finds
+        # nothing (a dim room, a bright screen); the same checks verify both
+        found = detect_landmarks(image, layout, replace(params, threshold_mode="fixed"))
+        if found is None:
+            found = detect_landmarks(image, layout, replace(params, threshold_mode="adaptive"))
+        return found
     gray = to_gray(image)
     centers, labels, stats, ids = _regions(gray, params)
     if len(centers) < 4:

@@ -12,7 +12,8 @@ violations, gross errors (> 50 px).
 
 Options: ``frames`` per video (300); ``configs``: comma-separated tracker
 configurations measured on the same frames: ``default`` (the tracker's defaults,
-prediction by the monitor plane's image motion), ``translation`` (the dissertation's
+prediction by camera rotation), ``flow`` (the monitor plane's image motion),
+``translation`` (the dissertation's
 prediction), ``similarity``, ``rotation``, ``affine`` (the dissertation's cursor).
 Pooled per-frame figures come from per-scene sums and histograms (p95 to ~2 %).
 """
@@ -33,6 +34,7 @@ from omnidev.evaluation.framework import SceneResult, Task
 
 CONFIGS: dict[str, dict[str, Any]] = {
     "default": {},
+    "flow": {"predict": "flow"},
     "translation": {"predict": "translation"},
     "similarity": {"predict": "similarity"},
     "rotation": {"predict": "rotation"},

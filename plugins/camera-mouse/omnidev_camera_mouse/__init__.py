@@ -21,12 +21,13 @@ Calibration file: the landmark layout (JSON or TOML with the keys of
 offsets from the screen corners, circle and square sizes, all in mm).
 
 Options: ``method`` ("homography", default, or the dissertation's "affine");
-``predict`` ("flow", default: the monitor plane's homography from a reference
+``predict`` ("rotation", default; "flow": the monitor plane's homography from a reference
 frame, fitted to features tracked on the monitor and the landmarks found, see
 :mod:`omnidev.mouse.flow`; with it the same image motion places the tracking
 windows and rejects hits off the plane's motion during fast moves, and the
 landmarks keep following it for up to 2 s while fewer than two are found;
-"rotation": the camera turning about its center, fitted to the landmarks found;
+"rotation": the camera turning about its center, fitted to the landmarks found
+(flow's fallback);
 "similarity"; or the dissertation's "translation");
 ``fov_deg`` (the webcam's horizontal field of view for "rotation", default 60);
 ``redetect_every`` (frames, default 5; 0 turns re-detection while predicting
@@ -62,7 +63,7 @@ class CameraMouse:
         self,
         layout: LandmarkLayout,
         method: str = "homography",
-        predict: str = "flow",
+        predict: str = "rotation",
         redetect_every: int = 5,
         fov_deg: float = 60.0,
     ) -> None:
@@ -244,7 +245,7 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> Camera
     return CameraMouse(
         load_layout(calibration),
         str(options.get("method", "homography")),
-        str(options.get("predict", "flow")),
+        str(options.get("predict", "rotation")),
         redetect,
         fov,
     )
