@@ -5,13 +5,14 @@
 
 1. ``sb``: ``cv2.findChessboardCornersSB`` (``NORMALIZE_IMAGE | EXHAUSTIVE | ACCURACY``);
 2. ``classic``: ``cv2.findChessboardCorners`` (adaptive threshold, quads linked into a grid);
-3. ``sb-x2`` and ``classic-x2``: both on the image upsampled twice (bicubic): near a
-   mirror's rim the squares shrink to a few pixels, below what the detectors resolve;
-4. ``grow``: :func:`grow_grid`, a grid grown from saddle points (X-junctions of the board's
-   edges) by local prediction, which needs no straight rows: from a seed cell, every next
-   corner is predicted from its grid neighbours (linear or quadratic extrapolation along a
-   row or column, or the parallelogram of a cell) and taken when a saddle point lies within
-   a third of the local spacing and its two edge directions agree with the grid's.
+3. ``grow``: :func:`omnidev.fisheye.board_grow.grow_grid`, a grid grown from saddle points
+   (X-junctions of the board's edges) by local prediction, which needs no straight rows:
+   from a seed cell, every next corner is predicted from its grid neighbours (linear or
+   quadratic extrapolation along a row or column, or the parallelogram of a cell) and taken
+   when a saddle point lies within a third of the local spacing and its edge lines agree;
+4. ``classic-x2`` and ``sb-x2``: OpenCV's detectors on the image upsampled twice (bicubic):
+   near a mirror's rim the squares shrink to a few pixels, below what they resolve (the
+   slowest, so last).
 
 Each detector's pattern size is tried both ways round (``COLSxROWS`` and ``ROWSxCOLS``). A grid
 found the other way round is transposed back to the pattern's order (row by row, ``cols``
@@ -40,7 +41,7 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 Image = NDArray[np.uint8]
 
-METHODS = ("sb", "classic", "sb-x2", "classic-x2", "grow")
+METHODS = ("sb", "classic", "grow", "classic-x2", "sb-x2")
 SB_FLAGS = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
 CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 MAX_BEND = 0.8  # second difference along a row or column / the local spacing

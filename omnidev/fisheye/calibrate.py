@@ -6,8 +6,9 @@ Three models: cv2.fisheye (KB4), cv2.omnidir (Mei) and OCamCalib's polynomial
 Steps (docs/fisheye-calibration.md):
 
 1. :func:`detect_corners`: a chessboard by :func:`omnidev.fisheye.board_detect.detect_chessboard`
-   (``cv2.findChessboardCornersSB``, then ``cv2.findChessboardCorners``, then a grid grown
-   from saddle points for strongly distorted omni-images; every corner refined by
+   (``cv2.findChessboardCornersSB``, ``cv2.findChessboardCorners``, a grid grown from
+   saddle points for strongly distorted omni-images, OpenCV's two on the image upsampled
+   twice; every corner refined by
    ``cv2.cornerSubPix`` in a window fitted to its own squares), or
    ``cv2.aruco.CharucoDetector`` for a ChArUco board.
 2. :func:`calibrate_views` runs the solver robustly: cv2.fisheye with
@@ -123,8 +124,8 @@ def detect_corners(
 
     A chessboard must be found whole, by
     :func:`omnidev.fisheye.board_detect.detect_chessboard` (``methods``: its detectors, in
-    order; default all: ``cv2.findChessboardCornersSB``, ``cv2.findChessboardCorners``, both
-    on the image upsampled twice, then a grid grown from saddle points), each corner refined
+    order; default all: ``cv2.findChessboardCornersSB``, ``cv2.findChessboardCorners``, a
+    grid grown from saddle points, then OpenCV's two on the image upsampled twice), each corner refined
     by ``cv2.cornerSubPix`` in a window of 0.4 of its own spacing (2..7 px half-size).
     A ChArUco board may be partly visible; fewer than :data:`MIN_CORNERS` corners is None. Its
     corners are refined by ``cv2.cornerSubPix`` too, in a window that stays clear of the

@@ -259,7 +259,10 @@ def linear_solution(
         r, tv = _optical_pose(ext, float(t))
         rvecs.append(r)
         tvecs.append(tv)
-    err = project_views(lens, obj, rvecs, tvecs) - np.concatenate(uv)
+    p = np.concatenate(
+        [vector_of(lens)] + [np.concatenate([r, t]) for r, t in zip(rvecs, tvecs, strict=True)]
+    )
+    err = _Reprojector(obj, uv, len(PARAM_NAMES)).residuals(p)
     return LinearSolution(lens, rvecs, tvecs, _rms(err))
 
 
@@ -313,16 +316,75 @@ class Refined:
     iterations: int
 
 
-def _residuals(
-    p: FloatArray, obj: Sequence[FloatArray], uv: Sequence[FloatArray], n_int: int
-) -> FloatArray:
-    try:
-        lens = lens_from_vector(p[:n_int])
-    except ValueError:
-        return np.full(sum(2 * len(q) for q in uv), np.nan)
-    poses = p[n_int:].reshape(-1, 6)
-    rv, tv = list(poses[:, :3]), list(poses[:, 3:])
-    return (project_views(lens, obj, rv, tv) - np.concatenate(uv)).ravel()
+class _Reprojector:
+    """Pixels of every view's board points for a parameter vector, fast.
+
+    The sensor radius of each corner solves ``r ss(rho) = z rho`` (OCamCalib frame:
+    ``r = hypot(x, y)``, ``z`` along the axis): eight Newton steps from the radius of the
+    last evaluation (the refinement's steps are small) or, at first, of the observed corner;
+    corners where it does not converge to a root in [0, rho_max] go through
+    :meth:`Scaramuzza.project` (bracketed, exact).
+    """
+
+    def __init__(self, obj: Sequence[FloatArray], uv: Sequence[FloatArray], n_int: int) -> None:
+        self.obj = [np.asarray(o, np.float64) for o in obj]
+        self.target = np.concatenate(uv).ravel()
+        self.n_int = n_int
+        self.rho: FloatArray | None = None
+
+    def points(self, p: FloatArray) -> FloatArray:
+        poses = p[self.n_int :].reshape(-1, 6)
+        cam = []
+        for o, pose in zip(self.obj, poses, strict=True):
+            rot, _ = cv2.Rodrigues(pose[:3].reshape(3, 1))
+            cam.append(o @ np.asarray(rot).T + pose[3:])
+        return np.concatenate(cam)
+
+    def residuals(self, p: FloatArray, *, keep: bool = False) -> FloatArray:
+        """uv(p) - uv_observed, raveled; NaN where a corner is not imaged. ``keep``: the
+        radii found become the next start."""
+        try:
+            lens = lens_from_vector(p[: self.n_int])
+        except ValueError:
+            return np.full(self.target.shape, np.nan)
+        pts = self.points(p)
+        xo, yo, zo = pts[:, 1], pts[:, 0], -pts[:, 2]  # optical -> OCamCalib frame
+        r = np.hypot(xo, yo)
+        ss = np.asarray(lens.ss, np.float64)
+        dss = ss[1:] * np.arange(1, len(ss))
+        rho = self.rho
+        if rho is None:  # start from the observed corners' radii
+            rho = self._radius(lens, self.target.reshape(-1, 2))
+        rho = np.nan_to_num(rho.copy(), nan=-ss[0])
+        for _ in range(8):
+            g = r * np.polynomial.polynomial.polyval(rho, ss) - zo * rho
+            dg = r * np.polynomial.polynomial.polyval(rho, dss) - zo
+            with np.errstate(divide="ignore", invalid="ignore"):
+                rho = rho - g / dg
+        g = r * np.polynomial.polynomial.polyval(rho, ss) - zo * rho
+        scale = np.abs(zo) + r
+        bad = ~(np.isfinite(rho) & (rho >= 0) & (rho <= lens.rho_max))
+        bad |= ~(np.abs(g) <= 1e-9 * scale * np.maximum(1.0, np.abs(rho)))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = rho * xo / np.where(r > 0, r, 1.0)  # OCamCalib x (rows)
+            b = rho * yo / np.where(r > 0, r, 1.0)
+        row = lens.c * a + lens.d * b + lens.xc
+        col = lens.e * a + b + lens.yc
+        uv = np.stack([col, row], axis=1)
+        if bad.any():
+            exact, _ = lens.project(pts[bad])
+            uv[bad] = exact
+            rho[bad] = self._radius(lens, exact)
+        if keep:
+            self.rho = rho
+        return uv.ravel() - self.target
+
+    @staticmethod
+    def _radius(lens: Scaramuzza, uv: FloatArray) -> FloatArray:
+        dr, dc = uv[:, 1] - lens.xc, uv[:, 0] - lens.yc
+        det = lens.c - lens.d * lens.e
+        out: FloatArray = np.hypot((dr - lens.d * dc) / det, (lens.c * dc - lens.e * dr) / det)
+        return out
 
 
 def refine(
@@ -338,22 +400,26 @@ def refine(
     """Levenberg-Marquardt on the reprojection error over the intrinsics and all poses.
 
     ``fit_affine`` False holds c = 1, d = e = 0. The affine matrix is kept symmetric
-    (:data:`PARAM_NAMES`). Numerical Jacobian (the intrinsics' columns
-    from one perturbation each over all views; the poses' from six perturbations of every
-    pose at once, since a view's residuals depend only on its own pose).
+    (:data:`PARAM_NAMES`). Numerical Jacobian (the intrinsics' columns from one perturbation
+    each over all views; the poses' from six perturbations of every pose at once, since a
+    view's residuals depend only on its own pose); the damped normal equations are solved
+    with the poses eliminated view by view (Schur complement).
     """
     p0 = vector_of(lens)
     n_int = len(p0)
+    n_views = len(uv)
     poses = np.concatenate(
         [np.concatenate([np.ravel(r), np.ravel(t)]) for r, t in zip(rvecs, tvecs, strict=True)]
     )
     p = np.concatenate([p0, poses])
-    free = np.ones(len(p), bool)
+    free_int = np.ones(n_int, bool)
     if not fit_affine:
-        free[3:5] = False
+        free_int[3:5] = False
+    fi = np.flatnonzero(free_int)
     sizes = [2 * len(q) for q in uv]
-    starts = np.concatenate([[0], np.cumsum(sizes)])
-    res = _residuals(p, obj, uv, n_int)
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+    rep = _Reprojector(obj, uv, n_int)
+    res = rep.residuals(p, keep=True)
     if not np.all(np.isfinite(res)):
         raise OcamCalibError("the initial calibration does not image every corner")
     cost = float(res @ res)
@@ -361,49 +427,71 @@ def refine(
     done = 0
     while done < iterations:
         done += 1
-        jac = np.zeros((len(res), len(p)))
-        for k in range(n_int):
-            if not free[k]:
-                continue
+        j_int = np.zeros((len(res), len(fi)))
+        for col, k in enumerate(fi):
             hk = 1e-6 * max(1.0, abs(float(p[k])))
             q = p.copy()
             q[k] += hk
-            jac[:, k] = (_residuals(q, obj, uv, n_int) - res) / hk
+            j_int[:, col] = (rep.residuals(q) - res) / hk
+        j_pose = np.zeros((len(res), 6))
         dist = np.linalg.norm(p[n_int:].reshape(-1, 6)[:, 3:], axis=1)
         for j in range(6):
-            steps = np.full(len(uv), 1e-7) if j < 3 else 1e-6 * np.maximum(1.0, dist)
+            steps = np.full(n_views, 1e-7) if j < 3 else 1e-6 * np.maximum(1.0, dist)
             q = p.copy()
             q[n_int + j :: 6] += steps
-            r2 = _residuals(q, obj, uv, n_int)
-            for v in range(len(uv)):
-                sl = slice(starts[v], starts[v + 1])
-                jac[sl, n_int + 6 * v + j] = (r2[sl] - res[sl]) / steps[v]
-        jf = jac[:, free]
-        a = jf.T @ jf
-        g = jf.T @ res
+            j_pose[:, j] = (rep.residuals(q) - res) / np.repeat(steps, sizes)
+        a = np.einsum("ij,ik->jk", j_int, j_int)
+        g = np.einsum("ij,i->j", j_int, res)
+        blocks = []
+        for v in range(n_views):
+            sl = slice(starts[v], starts[v + 1])
+            jp = j_pose[sl]
+            blocks.append(
+                (
+                    np.einsum("ij,ik->jk", j_int[sl], jp),
+                    np.einsum("ij,ik->jk", jp, jp),
+                    np.einsum("ij,i->j", jp, res[sl]),
+                )
+            )
         gain = 0.0
-        step: FloatArray = np.zeros(int(free.sum()))
+        step_max = 0.0
         for _ in range(12):
             try:
-                step = np.asarray(np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), -g))
+                s_mat = a + lam * np.diag(np.diag(a) + 1e-12)
+                rhs = -g.copy()
+                solved = []
+                for b_v, c_v, g_v in blocks:
+                    cd = c_v + lam * np.diag(np.diag(c_v) + 1e-12)
+                    cb = np.linalg.solve(cd, np.column_stack([b_v.T, g_v]))
+                    s_mat -= b_v @ cb[:, :-1]
+                    rhs += b_v @ cb[:, -1]
+                    solved.append(cb)
+                d_int = np.linalg.solve(s_mat, rhs)
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
             trial = p.copy()
-            trial[free] += step
-            r2 = _residuals(trial, obj, uv, n_int)
+            trial[fi] += d_int
+            for v, cb in enumerate(solved):
+                trial[n_int + 6 * v : n_int + 6 * v + 6] += -cb[:, -1] - cb[:, :-1] @ d_int
+            step_max = float(np.abs(trial - p).max())
+            r2 = rep.residuals(trial)
             c2 = float(r2 @ r2) if np.all(np.isfinite(r2)) else math.inf
             if c2 < cost:
                 gain = (cost - c2) / max(cost, 1e-300)
-                p, res, cost, lam = trial, r2, c2, max(lam / 10, 1e-12)
+                p, cost, lam = trial, c2, max(lam / 10, 1e-12)
+                res = rep.residuals(p, keep=True)
                 break
             lam *= 10
-        if gain < 1e-12 or float(np.abs(step).max()) < 1e-12:
+        if gain < 1e-12 or step_max < 1e-12:
             break
     out = lens_from_vector(p[:n_int])
-    rv = [p[n_int + 6 * v : n_int + 6 * v + 3].copy() for v in range(len(uv))]
-    tv = [p[n_int + 6 * v + 3 : n_int + 6 * v + 6].copy() for v in range(len(uv))]
-    return Refined(out, rv, tv, _rms(res), done)
+    rv = [p[n_int + 6 * v : n_int + 6 * v + 3].copy() for v in range(n_views)]
+    tv = [p[n_int + 6 * v + 3 : n_int + 6 * v + 6].copy() for v in range(n_views)]
+    final = np.concatenate(
+        [reprojection(out, o, r, t) - q for o, q, r, t in zip(obj, uv, rv, tv, strict=True)]
+    )
+    return Refined(out, rv, tv, _rms(final), done)
 
 
 # ---------------------------------------------------------------- world2cam polynomial
