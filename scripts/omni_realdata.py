@@ -124,9 +124,11 @@ def run_set(name: str, spec: dict[str, Any], models: list[str]) -> dict[str, Any
     out["calibrations"] = {}
     for model in models:
         for which in ("all found", "published views"):
-            sel = dets if which == "all found" else [
-                d if d is not None and d.name in spec["stored"] else None for d in dets
-            ]
+            sel = (
+                dets
+                if which == "all found"
+                else [d if d is not None and d.name in spec["stored"] else None for d in dets]
+            )
             if which == "published views" and name == "mei":
                 continue
             t1 = time.perf_counter()

@@ -125,8 +125,9 @@ def detect_corners(
     A chessboard must be found whole, by
     :func:`omnidev.fisheye.board_detect.detect_chessboard` (``methods``: its detectors, in
     order; default all: ``cv2.findChessboardCornersSB``, ``cv2.findChessboardCorners``, a
-    grid grown from saddle points, then OpenCV's two on the image upsampled twice), each corner refined
-    by ``cv2.cornerSubPix`` in a window of 0.4 of its own spacing (2..7 px half-size).
+    grid grown from saddle points, then OpenCV's two on the image upsampled twice), each
+    corner refined by ``cv2.cornerSubPix`` in a window of 0.4 of its own spacing (2..7 px
+    half-size).
     A ChArUco board may be partly visible; fewer than :data:`MIN_CORNERS` corners is None. Its
     corners are refined by ``cv2.cornerSubPix`` too, in a window that stays clear of the
     markers (a refinement that moves a corner by 1 px or more is not taken).
