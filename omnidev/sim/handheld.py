@@ -7,7 +7,8 @@ What a seed draws:
 
 - the webcam: 320x240 to 1280x720, 50-85 degrees horizontal view, principal point off
   the centre by ~1.5 %, OpenCV distortion (k1 -0.35..0.05, k2, k3, p1, p2), 15-30 fps,
-  global or rolling shutter (readout 30-95 % of the frame time), exposure 1/400-1/30 s;
+  global or rolling shutter (rows read out over 10-33 ms, as webcam sensors do),
+  exposure 1/400-1/30 s;
 - the monitor: screen 0.30-0.80 m wide, 16:9, 16:10, 4:3 or 21:9, a black, grey,
   silver or white bezel 4-60 mm wide per side, and the four landmark cards (a black
   disc 3-7 % of the screen width on a white square 1.35-2.2 discs wide) at offsets
@@ -268,7 +269,9 @@ def draw_video(
         dist = cam.fx * disc_m / 6.0
     dist_range = (0.7 * dist, min(1.35 * dist, cam.fx * disc_m / 4.5))
     exposure = min(float(math.exp(rng.uniform(math.log(1 / 400), math.log(1 / 30)))), 1 / fps)
-    readout = 0.0 if rng.random() < 0.2 else float(rng.uniform(0.3, 0.95)) / fps
+    # a webcam sensor reads its rows out in 10-33 ms whatever the frame rate (a lower
+    # rate adds blanking); never more than the frame time
+    readout = 0.0 if rng.random() < 0.2 else min(float(rng.uniform(0.010, 0.033)), 0.95 / fps)
     max_blur = float(rng.uniform(5, 25))
     ratio = float(math.exp(rng.uniform(0.0, math.log(8.0))))  # screen white / card white
     card_white = float(rng.uniform(0.75, 0.92))
@@ -371,6 +374,28 @@ def project(
     """World points X (..., 3) -> distorted pixels (..., 2) and whether each is in the
     picture (in front, within the radius the image covers, inside the image)."""
     Xc = (X - C) @ R.T
+    z = Xc[..., 2]
+    front = z > 1e-9
+    xy = Xc[..., :2] / np.where(front, z, 1.0)[..., None]
+    uv = cam.normalized_to_pixel(xy)
+    r = np.linalg.norm(xy, axis=-1)
+    inside = (
+        front
+        & (r <= _max_radius(cam))
+        & (uv[..., 0] >= -0.5)
+        & (uv[..., 0] <= cam.width - 0.5)
+        & (uv[..., 1] >= -0.5)
+        & (uv[..., 1] <= cam.height - 0.5)
+    )
+    return uv, inside
+
+
+def _project_many(
+    cam: HandCamera, C: FloatArray, R: FloatArray, X: FloatArray
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """:func:`project` with one pose per point: C (m, 3) or (m, 1, 3), R (m, 3, 3) or
+    (m, 1, 3, 3), X (m, 3) or (m, k, 3)."""
+    Xc = np.einsum("...ij,...j->...i", R, X - C)
     z = Xc[..., 2]
     front = z > 1e-9
     xy = Xc[..., :2] / np.where(front, z, 1.0)[..., None]
@@ -556,6 +581,8 @@ class HandheldRenderer:
         )
         self.ring = _square_ring(video.layout)
         self.centres = np.column_stack([video.layout.landmark_centers_mm() / 1000, np.zeros(4)])
+        self.blur = self._blur_all()
+        self._truth: list[dict[str, Any]] | None = None
 
     # --------------------------------------------------------------- textures
     def _light(self, X: FloatArray, Y: FloatArray) -> FloatArray:
@@ -708,13 +735,18 @@ class HandheldRenderer:
             tex[Y0:Y1, X0:X1, :3] = np.clip(small * (white * _U16), 0, 65535).astype(np.uint16)
         return tex
 
-    def _blur_px(self, t: float) -> float:
-        """Largest image motion (px) of the landmark centres over the exposure at t."""
-        te = self.video.imaging.exposure_s
-        C, R = self.video.path.poses(np.array([t - te / 2, t + te / 2]))
-        a, _ = project(self.cam, C[0], R[0], self.centres)
-        b, _ = project(self.cam, C[1], R[1], self.centres)
-        return float(np.max(np.linalg.norm(a - b, axis=1)))
+    def _blur_all(self) -> FloatArray:
+        """(frames,) largest image motion (px) of the landmark centres over each frame's
+        exposure."""
+        v = self.video
+        te = v.imaging.exposure_s
+        t = np.arange(v.frames) / v.imaging.fps
+        C, R = v.path.poses(np.concatenate([t - te / 2, t + te / 2]))
+        X = np.tile(self.centres, (len(C), 1))
+        uv, _ = _project_many(self.cam, np.repeat(C, 4, axis=0), np.repeat(R, 4, axis=0), X)
+        a, b = uv.reshape(2, v.frames, 4, 2)
+        out: FloatArray = np.max(np.linalg.norm(a - b, axis=2), axis=1)
+        return out
 
     def _monitor_roi(self, Cs: FloatArray, Rs: FloatArray) -> tuple[int, int, int, int] | None:
         """Rows and columns (r0, r1, c0, c1) of the picture the monitor can cover in a
@@ -766,7 +798,7 @@ class HandheldRenderer:
             for i in range(index):
                 self.render(i)
         t = index / im.fps
-        blur = self._blur_px(t)
+        blur = float(self.blur[index]) if index < len(self.blur) else 0.0
         K = int(np.clip(math.ceil(blur / 1.5) + 1, 2, 24))
         bands = max(1, h // 16) if im.readout_s > 0 else 1
         rows = (np.arange(bands) + 0.5) * h / bands
@@ -808,11 +840,14 @@ class HandheldRenderer:
                 mon = cv2.remap(texs[1], mm, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)  # type: ignore[call-overload]
                 cv2.accumulate(mon, mon_acc[r0:r1, c0:c1])
         wall = cv2.resize(wall_acc, (w, h), interpolation=cv2.INTER_LINEAR)
-        cover = mon_acc[..., 3:4] * np.float32(1 / (65535 * K))
-        img = wall * (np.float32(1 / (K * _U8)) * (1 - cover))
-        img += mon_acc[..., :3] * np.float32(1 / (K * _U16))
+        # wall x (1 - coverage) + premultiplied monitor, both as exposure means
+        weight: F32 = np.asarray(cv2.merge([cv2.extractChannel(mon_acc, 3)] * 3), np.float32)
+        weight *= np.float32(-1 / (65535 * K * K * _U8))
+        weight += np.float32(1 / (K * _U8))
+        img: F32 = np.asarray(cv2.multiply(wall, weight), np.float32)
+        cv2.scaleAdd(cv2.cvtColor(mon_acc, cv2.COLOR_BGRA2BGR), 1 / (K * _U16), img, dst=img)
         if im.defocus_px > 0.3:
-            img = cv2.GaussianBlur(img, (0, 0), im.defocus_px)
+            img = np.asarray(cv2.GaussianBlur(img, (0, 0), im.defocus_px), np.float32)
         img *= self.shade
         mean = float(img[::4, ::4].mean())
         want = im.ae_target / max(mean, 1e-4)
@@ -840,66 +875,73 @@ class HandheldRenderer:
         return frame
 
     # --------------------------------------------------------------- truth
-    def truth(self, index: int) -> dict[str, Any]:
-        """Frame ``index``'s truth (see the module docstring), JSON-ready."""
+    def _truths(self) -> list[dict[str, Any]]:
+        """Every frame's truth (see :meth:`truth`), computed for the whole video at once."""
         v = self.video
         cam = self.cam
         im = v.imaging
-        t = index / im.fps
-        C, R = v.path.poses(np.array([t]))
-        C, R = C[0], R[0]
+        n = v.frames
+        t = np.arange(n) / im.fps
+        C, R = v.path.poses(t)
         centre_px = np.array([(cam.width - 1) / 2, (cam.height - 1) / 2])
         xy = cam.pixel_to_normalized(centre_px)
-        d = R.T @ np.array([xy[0], xy[1], 1.0])
-        screen_xy: list[float] | None = None
-        screen_px: list[float] | None = None
-        on = False
+        d = np.einsum("nji,j->ni", R, np.array([xy[0], xy[1], 1.0]))  # R^T ray
         W, H = v.layout.screen_width_mm / 1000, v.layout.screen_height_mm / 1000
-        if v.monitor is not None and d[2] > 1e-9:
-            s = -C[2] / d[2]
-            P = C + s * d
-            px = (P[0] / (W / SCREEN_PX[0]) - 0.5, P[1] / (H / SCREEN_PX[1]) - 0.5)
-            screen_px = [float(px[0]), float(px[1])]
-            screen_xy = [px[0] / (SCREEN_PX[0] - 1), px[1] / (SCREEN_PX[1] - 1)]
-            on = bool(0 <= P[0] <= W and 0 <= P[1] <= H)
-        uv_list: list[list[float] | None] = []
-        visible: list[bool] = []
-        inside: list[bool] = []
+        hit = (d[:, 2] > 1e-9) & (v.monitor is not None)
+        s = -C[:, 2] / np.where(hit, d[:, 2], 1.0)
+        P = C + s[:, None] * d
+        px = P[:, :2] / (np.array([W, H]) / np.array(SCREEN_PX)) - 0.5  # screen pixel centres
+        nxy = px / (np.array(SCREEN_PX) - 1)
+        on = hit & (P[:, 0] >= 0) & (P[:, 0] <= W) & (P[:, 1] >= 0) & (P[:, 1] <= H)
+        # each landmark at its own row's time under the rolling shutter (3 fixed-point steps)
         rc = (cam.height - 1) / 2
-        for k in range(4):
-            tk = t
-            uv = None
-            for _ in range(3):  # the landmark's own row time under the rolling shutter
-                Ck, Rk = v.path.poses(np.array([tk]))
-                uvk, ins = project(cam, Ck[0], Rk[0], self.centres[k])
-                uv = uvk
-                tk = t + (float(uvk[1]) - rc) / cam.height * im.readout_s
-            _, ring_in = project(cam, Ck[0], Rk[0], self.ring[k])
-            front = bool(((self.centres[k] - Ck[0]) @ Rk[0].T)[2] > 0)
-            present = v.monitor is not None
-            uv_list.append(
-                [float(uv[0]), float(uv[1])] if (present and front and uv is not None) else None
+        tk = np.repeat(t, 4)
+        X = np.tile(self.centres, (n, 1))
+        for _ in range(3):
+            Ck, Rk = v.path.poses(tk)
+            uv, ins = _project_many(cam, Ck, Rk, X)
+            tk = np.repeat(t, 4) + (uv[:, 1] - rc) / cam.height * im.readout_s
+        ring = np.repeat(self.ring[None], n, axis=0).reshape(n * 4, -1, 3)
+        _, ring_in = _project_many(cam, Ck[:, None], Rk[:, None], ring)
+        front = np.einsum("mij,mj->mi", Rk, X - Ck)[:, 2] > 0
+        present = v.monitor is not None
+        uv, ins = uv.reshape(n, 4, 2), ins.reshape(n, 4)
+        visible = ring_in.all(axis=1).reshape(n, 4) & present
+        front = front.reshape(n, 4) & present
+        aim, camc, roll = v.path.state(t)
+        view = np.degrees(np.arccos(np.minimum(1.0, np.abs(R[:, 2, 2]))))
+        dist = np.linalg.norm(aim - camc, axis=1)
+        starts = np.array([st for st, _ in v.path.segments])
+        seg = np.searchsorted(starts, t + 1e-9, side="right") - 1
+        out = []
+        for i in range(n):
+            out.append(
+                {
+                    "index": i,
+                    "t": float(t[i]),
+                    "screen_xy": [float(nxy[i, 0]), float(nxy[i, 1])] if hit[i] else None,
+                    "screen_px": [float(px[i, 0]), float(px[i, 1])] if hit[i] else None,
+                    "on_screen": bool(on[i]),
+                    "landmarks_uv": [
+                        [float(uv[i, k, 0]), float(uv[i, k, 1])] if front[i, k] else None
+                        for k in range(4)
+                    ],
+                    "visible": [bool(b) for b in visible[i]],
+                    "centre_inside": [bool(b and present) for b in ins[i]],
+                    "blur_px": round(float(self.blur[i]), 3),
+                    "view_angle_deg": round(float(view[i]), 3),
+                    "roll_deg": round(float(roll[i]), 3),
+                    "distance_m": round(float(dist[i]), 4),
+                    "segment": v.path.segments[seg[i]][1] if seg[i] >= 0 else "dwell",
+                }
             )
-            visible.append(bool(present and ring_in.all()))
-            inside.append(bool(present and ins))
-        aim, camc, roll = v.path.state(np.array([t]))
-        axis = R[2]
-        seg = [k for s, k in v.path.segments if s <= t + 1e-9]
-        return {
-            "index": index,
-            "t": t,
-            "screen_xy": screen_xy,
-            "screen_px": screen_px,
-            "on_screen": on,
-            "landmarks_uv": uv_list,
-            "visible": visible,
-            "centre_inside": inside,
-            "blur_px": round(self._blur_px(t), 3),
-            "view_angle_deg": round(math.degrees(math.acos(min(1.0, abs(float(axis[2]))))), 3),
-            "roll_deg": round(float(roll[0]), 3),
-            "distance_m": round(float(np.linalg.norm(aim[0] - camc[0])), 4),
-            "segment": seg[-1] if seg else "dwell",
-        }
+        return out
+
+    def truth(self, index: int) -> dict[str, Any]:
+        """Frame ``index``'s truth (see the module docstring), JSON-ready."""
+        if self._truth is None:
+            self._truth = self._truths()
+        return self._truth[index]
 
 
 def write_video(
