@@ -232,6 +232,8 @@ def track_circle(
     radius_steps: int = 1,
     min_contrast: float = 25.0,
     correlate: Literal["pieces", "kernel"] = "pieces",
+    streak: bool = True,
+    recentre: bool = True,
 ) -> Circle | None:
     """Find the landmark near its last position (x, y) and radius r, or None.
 
@@ -247,6 +249,12 @@ def track_circle(
             runs directly over their taps, and sums only the taps of the other
             radii at the 3 x 3 centers; ``"kernel"`` (reference) runs one
             cv2.filter2D per radius with the whole kernel.
+        streak: the centre of a motion-blurred landmark is the middle of the
+            ridge of scores along its streak (:func:`_plateau_centre`), not the
+            ridge's highest point (False: the peak, as the dissertation).
+        recentre: when that ridge runs into the side of the centres the window
+            can score (a landmark that moved about four radii since the last
+            frame), search once more in a window centred on it.
     """
     H, W = gray.shape[:2]
     half_win = math.ceil(5 * r)  # window side = five diameters
@@ -275,7 +283,32 @@ def track_circle(
         return None
     # score[i, j] is the center (reach - 1 + i, reach - 1 + j) of the window
     vy, vx = divmod(int(np.argmax(score[1:-1, 1:-1])), score.shape[1] - 2)
+    plateau = _plateau_centre(score[1:-1, 1:-1], vy, vx) if streak else None
     reach = r0 + n // 2
+    if plateau is not None:
+        vy, vx = round(plateau[0]), round(plateau[1])
+        edge = (
+            (plateau[2] and cy0 == y0)
+            or (plateau[3] and cx0 == x0)
+            or (plateau[4] and cy1 == y1)
+            or (plateau[5] and cx1 == x1)
+        )
+        if recentre and edge:
+            # the ridge runs into the window's side: look again around its middle
+            again = track_circle(
+                gray,
+                float(cx0 + vx + reach),
+                float(cy0 + vy + reach),
+                r,
+                n=n,
+                radius_steps=radius_steps,
+                min_contrast=min_contrast,
+                correlate=correlate,
+                streak=streak,
+                recentre=False,
+            )
+            if again is not None:
+                return again
     iy, ix = vy + reach, vx + reach
     rr, local = r0, score[vy : vy + 3, vx : vx + 3]
     for other in others:
@@ -293,9 +326,51 @@ def track_circle(
     contrast = float(local[1, 1]) / (BARS * (n // 2))
     if contrast < min_contrast:
         return None
-    dy = _parabola(float(local[0, 1]), float(local[1, 1]), float(local[2, 1]))
-    dx = _parabola(float(local[1, 0]), float(local[1, 1]), float(local[1, 2]))
+    if plateau is not None:
+        dy, dx = plateau[0] - vy, plateau[1] - vx
+    else:
+        dy = _parabola(float(local[0, 1]), float(local[1, 1]), float(local[2, 1]))
+        dx = _parabola(float(local[1, 0]), float(local[1, 1]), float(local[1, 2]))
     return Circle(cx0 + ix + dx, cy0 + iy + dy, float(rr), contrast)
+
+
+def _plateau_centre(
+    score: NDArray[np.float32], vy: int, vx: int, level: float = 0.8
+) -> tuple[float, float, bool, bool, bool, bool] | None:
+    """The middle (row, column, sub-pixel) of the ridge of template scores around the
+    best one (vy, vx), or None where there is no ridge.
+
+    A motion-blurred disc is a streak along which the template fits about equally
+    well: its best score lies anywhere on a ridge as long as the blur, so the peak
+    (and a parabola through it) wanders along it by px. The ridge is the centres
+    scoring ``level`` of the best or more and connected to it; where it reaches 3 px
+    or more, its centroid weighted by the score above that level is the streak's
+    middle (a sharp disc's peak is narrower: the parabola is kept there). The four
+    flags say whether the ridge touches the top, left, bottom, right side of ``score``.
+    """
+    top = float(score[vy, vx])
+    if top <= 0:
+        return None
+    thr = level * top
+    y0, y1 = max(vy - 1, 0), min(vy + 2, score.shape[0])
+    x0, x1 = max(vx - 1, 0), min(vx + 2, score.shape[1])
+    if int(np.count_nonzero(score[y0:y1, x0:x1] >= thr)) < 3:
+        return None  # a sharp peak: the common case, decided without labelling
+    _, labels = cv2.connectedComponents((score >= thr).astype(np.uint8), connectivity=8)
+    ys, xs = np.nonzero(labels == labels[vy, vx])
+    if max(int(np.ptp(ys)), int(np.ptp(xs))) < 3:
+        return None
+    w = score[ys, xs].astype(np.float64) - thr
+    total = float(w.sum())
+    h, wd = score.shape
+    return (
+        float(w @ ys) / total,
+        float(w @ xs) / total,
+        int(ys.min()) == 0,
+        int(xs.min()) == 0,
+        int(ys.max()) == h - 1,
+        int(xs.max()) == wd - 1,
+    )
 
 
 def _similarity(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[np.float64]:
