@@ -208,7 +208,11 @@ def evaluate_fixture(
     cursors: list[tuple[float, float] | None] = []
     with open_source(str(folder / "mouse.avi")) as source:
         for frame in source:
-            s = tracker.track(Frame(frame.image, frame.index, frame.index))
+            # capture times from the truth's frame times (the file's are delivery times)
+            i = frame.index
+            t = truth[i].get("t") if i < len(truth) else None
+            ts = round(float(t) * 1e9) if isinstance(t, int | float) else i
+            s = tracker.track(Frame(frame.image, ts, i))
             cursors.append(None if s is None else (s.x, s.y))
     if len(cursors) != len(truth):
         raise OmnidevError(
