@@ -639,6 +639,10 @@ def diagnose(
     distances: FloatArray,
     rows: Sequence[int],
     bound_px: float,
+    *,
+    mapping: PanoMapping | None = None,
+    uv: FloatArray | None = None,
+    offsets: FloatArray | None = None,
 ) -> str | None:
     """The likely cause when the held-out residual is over ``bound_px``; None when it is not.
 
@@ -646,33 +650,79 @@ def diagnose(
         fit_residual_px, heldout_px: (n,) per landmark.
         distances: (n,) landmark distance from the mirror center (landmarks' unit).
         rows: the landmarks' lines in their file (for the message).
+        mapping, uv, offsets: the fitted mapping, the (n, 2) pixels and the (n, 3)
+            landmark positions relative to the given mirror center; with them a
+            shift of the mirror center that would explain the residuals is sought.
     """
     rms = float(np.sqrt(np.mean(heldout_px**2)))
     if rms <= bound_px:
         return None
+    if mapping is not None and uv is not None and offsets is not None and len(uv) >= 8:
+        shift = _center_shift(mapping, uv, offsets)
+        if shift is not None:
+            delta, before, after = shift
+            return (
+                f"no model fits the landmarks: held-out RMS {rms:.2f} px > bound {bound_px:g} px; "
+                f"moving the mirror center by ({delta[0]:+.3g}, {delta[1]:+.3g}, {delta[2]:+.3g}) "
+                f"(landmarks' unit) would bring the fit RMS from {before:.2f} to {after:.2f} px: "
+                "the mirror center (--mirror-center) is probably off"
+            )
     med = float(np.median(heldout_px))
     worst = np.argsort(heldout_px)[::-1]
     outliers = [int(i) for i in worst[:5] if heldout_px[i] > max(5 * med, 2 * bound_px)]
     head = f"no model fits the landmarks: held-out RMS {rms:.2f} px > bound {bound_px:g} px; "
+    if len(distances) >= 8 and float(np.ptp(distances)) > 0.2 * float(np.median(distances)):
+        # Spearman-like: ranks, so that a few very near landmarks do not decide alone
+        a = np.argsort(np.argsort(-np.asarray(distances))).astype(float)
+        b = np.argsort(np.argsort(heldout_px)).astype(float)
+        c = float(np.corrcoef(a, b)[0, 1])
+        if c > 0.5:
+            return head + (
+                f"the residuals grow for near landmarks (rank correlation with nearness {c:.2f}): "
+                "the mirror center (--mirror-center) is probably off, or the camera is far "
+                "from single-viewpoint"
+            )
     if outliers and len(outliers) <= max(1, len(heldout_px) // 10):
         names = ", ".join(f"line {rows[i]} ({heldout_px[i]:.1f} px)" for i in outliers)
         return head + (
             f"landmark(s) {names} lie far from all others' model: mis-clicked or "
             "mis-measured? fix or remove them"
         )
-    if len(distances) >= 8 and float(np.ptp(distances)) > 0.2 * float(np.median(distances)):
-        c = float(np.corrcoef(1.0 / np.maximum(distances, 1e-12), heldout_px)[0, 1])
-        if c > 0.5:
-            return head + (
-                f"the residuals grow for near landmarks (correlation with 1/distance {c:.2f}): "
-                "the mirror center (--mirror-center) is probably off, or the camera is far "
-                "from single-viewpoint"
-            )
     return head + (
         "the residuals are large everywhere: check that the world coordinates are Z-up in one "
         "unit, that the pixels are of this camera's images (size, no crop or flip), and the "
         "mirror center"
     )
+
+
+def _center_shift(
+    mapping: PanoMapping, uv: FloatArray, offsets: FloatArray
+) -> tuple[FloatArray, float, float] | None:
+    """A mirror-center shift that explains the residuals, if it does: alternately a
+    Gauss-Newton step on the shift and a refit of the mapping (center, aspect, tilt)."""
+    delta = np.zeros(3)
+    before = float(np.sqrt(np.mean(np.sum((mapping.project_world(offsets) - uv) ** 2, 1))))
+    scale = float(np.median(np.linalg.norm(offsets, axis=1)))
+    mid, half = mapping.rho_norm
+    terms = Terms(aspect=True, tilt=True, degree=len(mapping.coeffs) - 1)
+    for it in range(6):
+        if it:
+            mapping = _fit_one(
+                uv, offsets - delta, terms, mapping, mid=mid, half=half, center_prior=None
+            )
+        r = (mapping.project_world(offsets - delta) - uv).ravel()
+        J = np.empty((len(r), 3))
+        h = 1e-4 * scale
+        for k in range(3):
+            e = np.zeros(3)
+            e[k] = h
+            J[:, k] = ((mapping.project_world(offsets - delta - e) - uv).ravel() - r) / h
+        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        delta = delta + step
+    after = float(np.sqrt(np.mean(np.sum((mapping.project_world(offsets - delta) - uv) ** 2, 1))))
+    if after < 0.5 * before and np.all(np.isfinite(delta)):
+        return delta, before, after
+    return None
 
 
 def with_terms(m: PanoMapping, **changes: object) -> PanoMapping:

@@ -491,6 +491,37 @@ def calibrate(
     return Calibration(table, fit, polar, reproj)
 
 
+def dissertation_misfit(calib: Calibration, bound_px: float) -> str:
+    """Why the dissertation's table does not fit its landmarks (reprojection RMS over ``bound_px``).
+
+    The radial residuals are regressed on the first two harmonics of the
+    azimuth: when they explain most of it, the camera breaks the table's
+    symmetry (a tilt, a misaligned lens, non-square pixels or a wrong center).
+    """
+    rms = float(np.sqrt(np.mean(calib.reprojection_px**2)))
+    th = calib.polar.theta
+    res = calib.fit.residual_px
+    A = np.stack([np.ones_like(th), np.cos(th), np.sin(th), np.cos(2 * th), np.sin(2 * th)], 1)
+    explained = 0.0
+    if len(th) > 8:
+        coef, *_ = np.linalg.lstsq(A, res, rcond=None)
+        explained = 1.0 - float(np.var(res - A @ coef)) / max(float(np.var(res)), 1e-12)
+    head = (
+        f"the dissertation's table does not fit: reprojection RMS {rms:.2f} px > {bound_px:g} px; "
+    )
+    if explained > 0.5:
+        return head + (
+            f"the radial residuals vary with azimuth ({explained:.0%} explained by its first two "
+            "harmonics): the camera is tilted, its lens is off the mirror axis, its pixels are "
+            "not square, or the image center is off; use --model general"
+        )
+    worst = int(np.argmax(calib.reprojection_px))
+    return head + (
+        f"the residuals do not follow the azimuth; check the landmarks (the worst is landmark "
+        f"{worst}, {calib.reprojection_px[worst]:.1f} px), the mirror center and the units"
+    )
+
+
 @dataclass(frozen=True)
 class GeneralCalibration:
     """The generalized table, the fit that chose its terms, and per-landmark residuals."""
@@ -544,7 +575,16 @@ def calibrate_general(
     fit = fit_general(uv, dirs, image_center, groups=groups, center_prior_px=center_prior_px)
     if max_heldout_px is not None:
         lines = list(rows) if rows is not None else list(range(len(uv)))
-        why = diagnose(fit.residual_px, fit.heldout_px, dist, lines, max_heldout_px)
+        why = diagnose(
+            fit.residual_px,
+            fit.heldout_px,
+            dist,
+            lines,
+            max_heldout_px,
+            mapping=fit.mapping,
+            uv=uv,
+            offsets=dirs,
+        )
         if why is not None:
             raise CalibrationError(why)
     m = fit.mapping

@@ -376,3 +376,105 @@ def make_case(
 
 __all__ = ["KINDS", "PanoCase", "TruthView", "make_case"]
 _ = PlaneView  # the side views of the misaligned mirror are PlaneViews
+
+
+# ---------------------------------------------------------------- image-center renders
+
+
+@dataclass(frozen=True)
+class CenterCase:
+    """An omni-image with camera-like degradations and its true image center."""
+
+    kind: str  # "mirror" or "fisheye"
+    seed: int
+    image: Image
+    center: tuple[float, float]
+    radius: float  # px of the outer boundary along u
+    look: dict[str, Any]  # the degradations drawn
+
+
+def degrade(
+    image: Image, rng: np.random.Generator, center: tuple[float, float], radius: float
+) -> tuple[Image, dict[str, Any]]:
+    """What a real camera adds: exposure, gamma, vignetting, blur, noise, JPEG, housing.
+
+    Vignetting is radial about ``center``; the housing is a dark arm crossing
+    the rim from the frame's edge (a mount) and/or a faint bright ring just
+    outside the disc (a lens barrel's reflection).
+    """
+    h, w = image.shape[:2]
+    img = image.astype(np.float64)
+    look: dict[str, Any] = {}
+    vv, uu = np.mgrid[0:h, 0:w].astype(np.float64)
+    r = np.hypot(uu - center[0], vv - center[1]) / radius
+    vig = float(rng.uniform(0.0, 0.6))
+    img *= (1.0 - vig * np.clip(r, 0, 1) ** 2)[..., None]
+    look["vignetting"] = vig
+    if rng.random() < 0.3:
+        ring_r = radius * float(rng.uniform(1.01, 1.04)) + 3
+        ring_w = float(rng.uniform(2, 5))
+        grey = float(rng.uniform(35, 80))
+        ring = np.exp(-(((r * radius - ring_r) / ring_w) ** 2))
+        img = np.maximum(img, (grey * ring)[..., None])
+        look["ring"] = {"radius": ring_r, "grey": grey}
+    if rng.random() < 0.4:
+        ang = float(rng.uniform(0, 2 * math.pi))
+        width = radius * float(rng.uniform(0.04, 0.1))
+        dx, dy = uu - center[0], vv - center[1]
+        along = dx * math.cos(ang) + dy * math.sin(ang)
+        across = -dx * math.sin(ang) + dy * math.cos(ang)
+        arm = (np.abs(across) < width / 2) & (along > radius * float(rng.uniform(0.75, 0.95)))
+        img[arm] = float(rng.uniform(8, 30))
+        look["arm_deg"] = math.degrees(ang)
+    gain = float(rng.uniform(0.6, 1.4))
+    gamma = float(rng.uniform(0.8, 1.25))
+    img = 255.0 * np.clip(img * gain / 255.0, 0, 1) ** gamma
+    look["gain"], look["gamma"] = gain, gamma
+    blur = float(rng.uniform(0.0, 1.2))
+    if blur > 0.2:
+        img = np.asarray(cv2.GaussianBlur(img, (0, 0), blur), np.float64)
+    look["blur"] = blur
+    noise = float(rng.uniform(0.5, 6.0))
+    img += rng.normal(0, noise, img.shape)
+    look["noise"] = noise
+    out = np.clip(img + 0.5, 0, 255).astype(np.uint8)
+    if rng.random() < 0.5:
+        q = int(rng.integers(60, 96))
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, q])
+        assert ok
+        out = np.asarray(cv2.imdecode(buf, cv2.IMREAD_COLOR), np.uint8)
+        look["jpeg"] = q
+    return out, look
+
+
+def make_center_case(
+    kind: str, seed: int, size: tuple[int, int], *, supersample: int = 1
+) -> CenterCase:
+    """A mirror (SVP, cut-off circle) or fisheye render of ``size`` with :func:`degrade` applied."""
+    rng = np.random.default_rng([seed, 11, size[0], size[1]])
+    w, h = size
+    scene = RoomScene(seed)
+    center = (w / 2 - 0.5 + rng.uniform(-15, 15), h / 2 - 0.5 + rng.uniform(-15, 15))
+    fill = float(rng.uniform(0.42, 0.48)) * min(w, h)
+    cam: Any
+    if kind == "mirror":
+        base = SvpHyperbolicCamera.default(min(w, h))
+        base = dataclasses.replace(
+            base,
+            a=base.a * rng.uniform(0.85, 1.15),
+            b=base.b * rng.uniform(0.85, 1.15),
+            image_size=(w, h),
+            center=center,
+            cutoff_radius=float(rng.uniform(0.08, 0.2)) * min(w, h),
+        )
+        cam = dataclasses.replace(base, f=_rim_focal(base, fill))
+    elif kind == "fisheye":
+        max_angle = math.radians(rng.uniform(90, 100))
+        k1 = float(rng.uniform(-0.06, 0.03))
+        unit = max_angle + k1 * max_angle**3
+        cam = PolyFisheyeCamera(fill / unit, k1, 0.0, (w, h), center, max_angle)
+    else:
+        raise ValueError(f"kind {kind!r}: mirror or fisheye")
+    img = render_omni(cam, scene, supersample=supersample)
+    out, look = degrade(img, rng, center, fill)
+    return CenterCase(kind, seed, out, center, fill, look)
