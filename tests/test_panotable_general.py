@@ -73,7 +73,8 @@ def test_general_fit_recovers_tilt_and_aspect(cam, what):
     m = g.mapping
     rms, mx = truth_error(cam, m)
     print(
-        f"{what}: kept {g.terms.describe()}, held-out {g.heldout_rms_px:.3f} px, truth {rms:.3f}/{mx:.3f}"
+        f"{what}: kept {g.terms.describe()}, held-out {g.heldout_rms_px:.3f} px, "
+        f"truth {rms:.3f}/{mx:.3f}"
     )
     assert math.hypot(m.image_center[0] - cam.center[0], m.image_center[1] - cam.center[1]) < 0.3
     if what == "tilt":

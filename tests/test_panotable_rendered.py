@@ -107,7 +107,8 @@ def test_board_landmarks_calibrate_a_camera(tmp_path):
         errs.append(np.hypot(*(uv - c.uv).T))
     e = np.concatenate(errs)
     print(
-        f"\n{len(e)} board corners: error median {np.median(e):.3f} px, p95 {np.percentile(e, 95):.3f}"
+        f"\n{len(e)} board corners: error median {np.median(e):.3f} px, "
+        f"p95 {np.percentile(e, 95):.3f}"
     )
     assert len(e) >= 100
     # measured at 960 px, one sample per pixel: median 0.31, p95 1.66 px (at 1280 px with
