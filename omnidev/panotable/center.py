@@ -384,9 +384,9 @@ def detect_image_center(
         )
     cutoff: CircleFit | None = None
     if kind != "fisheye":
-        guess = _cutoff_guess(gray, outer.center, outer.radii[0])
-        if guess is not None:
-            (gx, gy), gr = guess
+        hole = _cutoff_guess(gray, outer.center, outer.radii[0])
+        if hole is not None:
+            (gx, gy), gr = hole
             cutoff = _boundary(gray, (gx, gy), (gr, gr), falling=False, first=0.08)
         if kind == "mirror" and cutoff is None:
             raise CalibrationError(
