@@ -81,7 +81,7 @@ def run_foreground(
         },
     }
     config = parse_config(doc, Path(f"omnidev {name}"))
-    pipeline = Pipeline(config)
+    pipeline = Pipeline(config, log_fatal=False)  # the error ends the command, once
     if check is not None:
         check(pipeline, config)
     stop = threading.Event()

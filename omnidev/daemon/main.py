@@ -106,8 +106,9 @@ class Daemon:
         period = min(sdnotify.watchdog_interval_s() or 1.0, 1.0)
         next_ping = 0.0
         try:
-            # a short tick: a file that ends or fails ends the process within 0.2 s
-            while not self.stopping.wait(0.2):
+            while not self.stopping.is_set():
+                # wakes at once when the run ends by itself (a file ended or failed)
+                self.pipeline.finished.wait(0.2)
                 if self.reload_requested.is_set():
                     self.reload_requested.clear()
                     try:
@@ -117,10 +118,10 @@ class Daemon:
                 if self.pipeline.ended.is_set():
                     log.info("the file source ended; exiting")
                     return 0
-                if not self.pipeline.alive:
+                if self.pipeline.finished.is_set() or not self.pipeline.alive:
                     why = self.pipeline.fatal or "pipeline thread died"
-                    if self.pipeline.source_failed:
-                        log.error("exiting: %s", why)
+                    if self.pipeline.source_failed:  # the error is logged above
+                        log.info("exiting with status %d, not restarted", EXIT_SOURCE_FAILED)
                         return EXIT_SOURCE_FAILED
                     log.error("%s; exiting so systemd restarts the daemon", why)
                     return 1

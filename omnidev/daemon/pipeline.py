@@ -74,12 +74,18 @@ class Pipeline:
         config: the validated configuration.
         on_sample: optional callback ``(sample, t_done_ns)`` after each sink
             call, from the worker thread (tests and benchmarks use it).
+        log_fatal: log the error that stops the pipeline (:attr:`fatal`); a
+            caller that reports it itself (the foreground commands) passes False.
     """
 
-    def __init__(self, config: DaemonConfig, on_sample: Any = None) -> None:
+    def __init__(
+        self, config: DaemonConfig, on_sample: Any = None, *, log_fatal: bool = True
+    ) -> None:
         self.config = config
         self.on_sample = on_sample
+        self.log_fatal = log_fatal
         self.ended = threading.Event()  # set when a recorded source ended and all is processed
+        self.finished = threading.Event()  # set when the run ended by itself (ended or fatal)
         self.source_failed = False  # a file source failed: final, restarting cannot help
         self.source_live: bool | None = None  # the open source's kind (None: none opened yet)
         self.state = "starting"
@@ -288,6 +294,7 @@ class Pipeline:
                         self.state = "ended"
                         log.info("source %s ended after %d frames", uri, self._stats.frames)
                         self.ended.set()
+                        self.finished.set()
                         return
             except Exception as exc:
                 final = isinstance(exc, FileSourceError) or not live
@@ -310,8 +317,10 @@ class Pipeline:
         self.fatal = msg
         self.source_failed = True
         self.state = "failed"
-        log.error("%s; not retrying (a file is not a camera that may come back)", msg)
+        if self.log_fatal:
+            log.error("%s; not retrying (a file is not a camera that may come back)", msg)
         self._stop.set()
+        self.finished.set()
 
     def _wait_processed(self) -> None:
         """Wait until the worker has processed (or the queue dropped) every captured frame."""
@@ -427,8 +436,10 @@ class Pipeline:
                 f"{self.config.source}: frame {frame.index} is {w}x{h}, the stream was "
                 f"{self._size[0]}x{self._size[1]}; stopping with all buttons released"
             )
-            log.error("%s", self.fatal)
+            if self.log_fatal:
+                log.error("%s", self.fatal)
             self._stop.set()
+            self.finished.set()
             return
         try:
             sample = self.tracker.track(frame)

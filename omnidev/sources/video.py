@@ -144,7 +144,7 @@ class VideoSource(SourceBase):
         offset_s = 0.0  # presentation time of the current pass's start (loops)
         period_ns = round(1e9 / self.rate) if isinstance(self.rate, int | float) else 0
         next_ns = time.monotonic_ns()
-        anchor_ns = time.monotonic_ns()  # realtime: when presentation time 0 is due
+        anchor_ns: int | None = None  # realtime: when presentation time 0 is due
         while True:
             in_file = 0
             first_pts: float | None = None
@@ -172,6 +172,8 @@ class VideoSource(SourceBase):
                         time.sleep(delay / 1e9)
                     next_ns = max(next_ns + period_ns, time.monotonic_ns())
                 elif self.rate == "realtime":
+                    if anchor_ns is None:  # the first frame goes now, the others after it
+                        anchor_ns = time.monotonic_ns() - round(t_s * 1e9)
                     due = anchor_ns + round(t_s * 1e9)
                     delay = due - time.monotonic_ns()
                     if delay > 0:
