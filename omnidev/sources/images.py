@@ -21,7 +21,7 @@ from omnidev.frame import Frame
 from omnidev.sources import IMAGE_SUFFIXES, SourceBase, check_options
 
 DEFAULT_FPS = 30.0
-MAX_FPS = 10_000.0
+MIN_FPS, MAX_FPS = 0.01, 10_000.0
 
 
 class ImageSource(SourceBase):
@@ -69,9 +69,9 @@ def open_images(rest: str, options: dict[str, str]) -> ImageSource:
             fps = float(options["fps"])
         except ValueError:
             fps = math.nan
-        if not (0 < fps <= MAX_FPS):
+        if not (MIN_FPS <= fps <= MAX_FPS):
             raise SourceError(
-                f"{uri}: option fps must be frames per second in (0, {MAX_FPS:g}], "
-                f"got {options['fps']!r}"
+                f"{uri}: option fps must be frames per second from {MIN_FPS:g} to "
+                f"{MAX_FPS:g}, got {options['fps']!r}"
             )
     return ImageSource(rest, fps)

@@ -41,7 +41,7 @@ from omnidev.sources import SourceBase, check_options
 
 log = logging.getLogger("omnidev.sources")
 
-MAX_RATE = 10_000.0  # frames per second: ``rate`` above this is refused
+MIN_RATE, MAX_RATE = 0.01, 10_000.0  # frames per second: ``rate`` outside is refused
 
 
 class Decoded(NamedTuple):
@@ -244,7 +244,7 @@ def _frame_spacing(spacings: list[float], fps: float | None) -> float:
 
 
 def parse_rate(uri: str, text: str) -> float | str:
-    """``rate=`` as frames per second in (0, MAX_RATE], or ``"realtime"``.
+    """``rate=`` as frames per second in [MIN_RATE, MAX_RATE], or ``"realtime"``.
 
     >>> parse_rate("video:a.avi", "realtime"), parse_rate("video:a.avi", "30")
     ('realtime', 30.0)
@@ -255,10 +255,10 @@ def parse_rate(uri: str, text: str) -> float | str:
         rate = float(text)
     except ValueError:
         rate = math.nan
-    if not (0 < rate <= MAX_RATE):
+    if not (MIN_RATE <= rate <= MAX_RATE):
         raise SourceError(
-            f"{uri}: option rate must be 'realtime' or frames per second in (0, {MAX_RATE:g}], "
-            f"got {text!r}"
+            f"{uri}: option rate must be 'realtime' or frames per second from {MIN_RATE:g} "
+            f"to {MAX_RATE:g}, got {text!r}"
         )
     return rate
 
