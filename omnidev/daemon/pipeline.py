@@ -226,10 +226,11 @@ class Pipeline:
     def summary(self) -> str:
         """One line for the end of a run: frames, drops and why, positions, latency."""
         st = self.status()
+        drops = f"{st['dropped_frames']} dropped"
         if st["source_kind"] == "recorded":
-            drops = f"{st['dropped_frames']} dropped (a file waits for the tracker)"
-        else:
-            drops = f"{st['dropped_frames']} dropped (live source: the oldest frame when behind)"
+            drops += " (a file waits for the tracker)"
+        elif st["source_kind"] == "live":
+            drops += " (live source: the oldest frame when behind)"
         return (
             f"{st['frames']} frames, {drops}, {st['tracked']} cursor positions, "
             f"latency p50 {st['latency_p50_ms']} ms"
