@@ -32,7 +32,8 @@ def register(sub: Any) -> None:
         description="Unwarp an omni-image, video or live source into one or more views. "
         "Pair each --view with an -o output, in order. View syntax: "
         "panorama:WxH[,elev=LO:HI] | cylinder:WxH,d=D,z=LO:HI | plane:WxH,d=D,w=W,z=LO:HI"
-        "[,az=DEG] | perspective:WxH[,fov=DEG,pan=DEG,tilt=DEG,roll=DEG] | top:WxH,x=X,y=Y,z=Z",
+        "[,az=DEG] | plane:WxH,c=X:Y:Z,n=NX:NY:NZ,w=W,h=H[,roll=DEG] (any plane: centre, "
+        "normal, size) | perspective:WxH[,fov=DEG,pan=DEG,tilt=DEG,roll=DEG] | top:WxH,x=X,y=Y,z=Z",
     )
     p.add_argument("input", nargs="?", help="source URI or path (omit with --rig)")
     p.add_argument("--camera", type=Path, help="calibration file (any registered kind)")
