@@ -368,6 +368,8 @@ def test_dwell_click_runs_on_presentation_time(tmp_path):
     assert len(presses) == 1
     before = events[presses[0] - 1]
     assert before["kind"] == "move" and before["frame"] == 23
+    press = events[presses[0]]  # the click names the frame that completed the rest
+    assert (press["frame"], press["frame_ns"]) == (23, before["frame_ns"]) == (23, 1_560_000_000)
     wall_s = (events[-1]["t_ns"] - events[0]["t_ns"]) / 1e9
     print(f"\ndwell on a VFR file: click after frame 23 (0.9 s of video), run took {wall_s:.3f} s")
 
@@ -539,3 +541,107 @@ def test_an_image_set_is_a_recorded_source(tmp_path):
     spacing = statistics.median(np.diff([m["frame_ns"] for m in moves]))
     assert spacing == pytest.approx(1e9 / 12, abs=1)
     assert p.status()["dropped_frames"] == 0
+
+
+# -- what the user sees: omnidev ctl status and the exit summaries ---------------------
+
+
+def test_ctl_status_and_the_daemons_summary_count_a_live_sources_drops(tmp_path, capsys, caplog):
+    """The daemon (in this process, its real control socket) on a file paced at 400 fps
+    with a tracker of 10 ms a frame: `omnidev ctl status` shows the drops with the live
+    policy, its figures add up (frames = tracked + dropped, give or take the frames in
+    flight), and the daemon's log line on stopping counts them too."""
+    import logging
+    import tempfile
+    import threading
+
+    from omnidev.cli.main import main
+    from omnidev.daemon.main import Daemon
+
+    write_cfr(tmp_path / "cam.avi", dot_path(200), fps=30.0)
+    sock_dir = Path(tempfile.mkdtemp(prefix="omh30-"))  # AF_UNIX paths: 107 bytes at most
+    rec = tmp_path / "events.jsonl"
+    uri = f"video:{tmp_path / 'cam.avi'}?rate=400&loop=1"
+    cfg = blob_config(tmp_path, uri, "record", f'path = "{rec}"')
+    text = cfg.read_text().replace(str(tmp_path / "control.sock"), str(sock_dir / "c.sock"))
+    cfg.write_text(text)
+    daemon = Daemon(cfg)
+    daemon.pipeline.tracker = SlowTracker(daemon.pipeline.tracker, 0.010)
+    caplog.set_level(logging.INFO, logger="omnidevd")
+    result: list[int] = []
+    runner = threading.Thread(target=lambda: result.append(daemon.run()))
+    runner.start()
+    try:
+        end = time.monotonic() + 30
+        while time.monotonic() < end and daemon.pipeline.status()["tracked"] < 30:
+            time.sleep(0.05)
+        capsys.readouterr()
+        assert main(["ctl", "status", "--socket", str(sock_dir / "c.sock"), "--json"]) == 0
+        st = json.loads(capsys.readouterr().out)
+        assert main(["ctl", "status", "--socket", str(sock_dir / "c.sock")]) == 0
+        human = capsys.readouterr().out
+    finally:
+        daemon.stopping.set()
+        runner.join(30)
+        shutil.rmtree(sock_dir, ignore_errors=True)
+    assert result == [0]
+    assert st["source_kind"] == "live" and st["state"] == "running"
+    assert st["tracked"] >= 30 and st["dropped_frames"] >= st["tracked"]
+    # every frame delivered was tracked or dropped, except the few in the queue or tracker
+    assert 0 <= st["frames"] - st["tracked"] - st["dropped_frames"] <= 3
+    row = re.search(r"frames: +(\d+) \(dropped (\d+); live: the oldest frame is dropped", human)
+    assert row is not None, human
+    assert int(row[1]) >= st["frames"] and int(row[2]) >= st["dropped_frames"]
+    stopped = [r.getMessage() for r in caplog.records if r.getMessage().startswith("stopped: ")]
+    assert len(stopped) == 1, [r.getMessage() for r in caplog.records]
+    last = re.match(r"stopped: (\d+) frames, (\d+) dropped \(live source: the oldest", stopped[0])
+    assert last is not None and int(last[2]) >= int(row[2])
+    print(f"\nctl status on a live source: {row[0]}; daemon on stopping: {stopped[0]}")
+
+
+def test_laser_prints_the_summary_of_its_source(tmp_path, capsys):
+    """`omnidev laser` on a committed screen fixture (90 frames, 61 with a spot): read at
+    its own pace every frame is tracked and the summary says none was dropped; paced with
+    ?rate= it is a live source, and the summary counts its drops (how many depends on the
+    machine: at most the frames without a position)."""
+    from omnidev.cli.main import main
+
+    fx = Path(__file__).resolve().parents[1] / "fixtures" / "screen" / "k1+0.10-640x480"
+    calib = tmp_path / "screen.yml.gz"
+    argv = [
+        "calibrate", "screen", "--white", str(fx / "white.png"), "--black",
+        str(fx / "black.png"), "--dots", str(fx / "dots.png"), "-o", str(calib),
+    ]  # fmt: skip
+    assert main(argv) == 0
+    spots = [
+        i
+        for i, f in enumerate(json.loads((fx / "truth.json").read_text())["laser"]["per_frame"])
+        if f.get("spot") is not None
+    ]
+    summaries = {}
+    for uri in (str(fx / "laser.avi"), f"video:{fx / 'laser.avi'}?rate=2000"):
+        rec = tmp_path / "events.jsonl"
+        rec.unlink(missing_ok=True)
+        capsys.readouterr()
+        argv = [
+            "laser", uri, "--calibration", str(calib), "--colour", "green",
+            "--sink-option", f"path={rec}", "--filter", "none",
+        ]  # fmt: skip
+        assert main(argv) == 0
+        err = capsys.readouterr().err.strip().splitlines()
+        summaries[uri] = err[-1]
+        m = re.fullmatch(
+            r"90 frames, (\d+) dropped \((.+?)\), (\d+) cursor positions, latency p50 \S+ ms; "
+            r"buttons released",
+            err[-1],
+        )
+        assert m is not None, err
+        frames = [e["frame"] for e in moves_of(rec)]
+        assert int(m[3]) == len(frames) and set(frames) <= set(spots)
+        if "?rate=" in uri:
+            assert m[2] == "live source: the oldest frame when behind"
+            assert int(m[1]) <= 90 - len(frames)
+        else:
+            assert m[2] == "a file waits for the tracker" and int(m[1]) == 0
+            assert frames == spots  # every frame with a spot gave a position, once
+    print("\nomnidev laser summaries: " + " | ".join(summaries.values()))

@@ -25,6 +25,14 @@ from omnidev.errors import OmnidevError
 
 def add_pointer_arguments(p: argparse.ArgumentParser) -> None:
     """The options every foreground pointer command has: sink, screen, filter, buttons."""
+    p.epilog = (
+        "Sources: a video file or image set is read as fast as the tracker takes it, every "
+        "frame, with the file's own timestamps for the filter and --dwell; a camera, or a "
+        "file paced with ?rate=N or ?rate=realtime, drops its oldest frame when the tracker "
+        "is behind. The summary at the end counts frames, drops and cursor positions. A "
+        "missing, truncated or corrupt file stops with an error naming its last good "
+        "frame (exit 2). See docs/daemon.md, 'Sources and the frame queue'."
+    )
     p.add_argument("--sink", default="record", help="sink plugin (uinput, xtest, hidg, record)")
     p.add_argument(
         "--sink-option", action="append", default=[], metavar="KEY=VALUE", help="sink option"

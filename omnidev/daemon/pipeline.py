@@ -487,7 +487,7 @@ class Pipeline:
             rect = self.config.screen.screen
             t = sample.timestamp_ns / 1e9
             if self.dwell.update(t, sample.x * (rect.width - 1), sample.y * (rect.height - 1)):
-                self.sink.click(self.dwell.button)
+                self.sink.click(self.dwell.button, sample=sample)
                 self._dwell_clicks += 1
         done = time.monotonic_ns()
         self._stats.tracked += 1

@@ -49,7 +49,7 @@ class PointerSink(ABC):
         self.closed = False
         self.last_position: tuple[float, float] | None = None
         # the frame of the sample being emitted (its timestamp_ns and index), for sinks
-        # that log it; None outside emit()
+        # that log it; None outside emit() and click(sample=...)
         self.frame_ns: int | None = None
         self.frame_index: int | None = None
 
@@ -89,10 +89,17 @@ class PointerSink(ABC):
         self._set_button(button, False)
         self._flush()
 
-    def click(self, button: str = "left") -> None:
-        """Press and release."""
-        self.press(button)
-        self.release(button)
+    def click(self, button: str = "left", *, sample: PointerSample | None = None) -> None:
+        """Press and release. ``sample``: the pointer sample the click comes from (a
+        dwell click), so a sink that logs frames names its frame."""
+        if sample is not None:
+            self.frame_ns, self.frame_index = sample.timestamp_ns, sample.frame_index
+        try:
+            self.press(button)
+            self.release(button)
+        finally:
+            if sample is not None:
+                self.frame_ns = self.frame_index = None
 
     def emit(self, sample: PointerSample) -> None:
         """Move to the sample's position and make the buttons match its ``buttons``."""
