@@ -686,3 +686,15 @@ def test_laser_prints_the_summary_of_its_source(tmp_path, capsys):
             assert m[2] == "a file waits for the tracker" and int(m[1]) == 0
             assert frames == spots  # every frame with a spot gave a position, once
     print("\nomnidev laser summaries: " + " | ".join(summaries.values()))
+
+
+def test_a_bare_device_node_is_a_camera_not_a_missing_file(tmp_path):
+    """`omnidev laser /dev/video9`: a camera node, so a missing one is a SourceError the
+    daemon retries (a camera may be plugged in), not a final 'file not found'."""
+    from omnidev.sources import split_uri
+
+    assert split_uri("/dev/video9")[0] == "v4l2"
+    assert split_uri(str(tmp_path / "talk.mp4"))[0] == "video"
+    with pytest.raises(SourceError) as info:
+        open_source("/dev/video9" if not Path("/dev/video9").exists() else "/dev/video99")
+    assert not isinstance(info.value, FileSourceError) and "file not found" not in str(info.value)

@@ -9,9 +9,10 @@
 | ``v4l2:/dev/videoN?width=W&height=H&fps=F&fourcc=CCCC`` | a V4L2 capture device |
 | ``usb:VID:PID[:SERIAL]`` | the V4L2 node of a USB camera (hex vendor:product) |
 
-A bare path means ``images:`` when it is a folder, a glob or an image file, and
-``video:`` otherwise. Schemes are plugins (group ``omnidev.sources``): the
-entry point is a callable ``open(rest, options) -> Source``.
+A bare path means ``v4l2:`` when it is a device node (``/dev/videoN``),
+``images:`` when it is a folder, a glob or an image file, and ``video:`` otherwise.
+Schemes are plugins (group ``omnidev.sources``): the entry point is a callable
+``open(rest, options) -> Source``.
 
 Two kinds of source, told apart by ``Source.live``:
 
@@ -98,7 +99,14 @@ def split_uri(uri: str) -> tuple[str, str, dict[str, str]]:
 
 
 def _bare(path: str) -> str:
+    """The scheme of a bare path.
+
+    >>> _bare("/dev/video0"), _bare("talk.mp4"), _bare("shots/*.png")
+    ('v4l2', 'video', 'images')
+    """
     p = Path(path)
+    if path.startswith("/dev/video") or p.is_char_device():
+        return "v4l2"  # a camera node: live, retried when it goes away (not a missing file)
     if p.is_dir() or _glob.has_magic(path) or p.suffix.lower() in IMAGE_SUFFIXES:
         return "images"
     return "video"
