@@ -22,6 +22,7 @@ defined. Methods:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Protocol
 
 import cv2
@@ -122,10 +123,11 @@ class CellMap:
         self.quads_image, self.quads_screen = grid_cells(grid, image_size)
 
     def params(self) -> Params:
-        n2 = self.grid.image.shape[0]
+        r2, c2 = self.grid.image.shape[:2]
         return {
-            "grid_image": self.grid.image.reshape(n2 * n2, 2),
-            "grid_screen": self.grid.screen.reshape(n2 * n2, 2),
+            "grid_image": self.grid.image.reshape(r2 * c2, 2),
+            "grid_screen": self.grid.screen.reshape(r2 * c2, 2),
+            "grid_shape": np.array([r2, c2], np.float64),
         }
 
     def __call__(self, uv: FloatArray) -> FloatArray:
@@ -213,7 +215,7 @@ class RadialMap:
     ) -> None:
         self.p = np.asarray(p, np.float64)
         self.scale = float(scale)
-        self.residual = np.asarray(residual, np.float64)  # (n, n, 2) screen px
+        self.residual = np.asarray(residual, np.float64)  # (rows, cols, 2) screen px
         self.lattice = np.asarray(lattice, np.float64)  # x0, y0, sx, sy of the dot lattice
 
     @classmethod
@@ -223,12 +225,24 @@ class RadialMap:
         xy: FloatArray,
         image_size: tuple[int, int],
         lattice: FloatArray,
-        n: int,
+        n: int | tuple[int, int],
         found: NDArray[np.bool_],
         *,
         correct: bool = True,
+        edges: Sequence[tuple[FloatArray, int, float]] | None = None,
+        edge_weight: float = 0.2,
     ) -> RadialMap:
-        """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2)."""
+        """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2); ``n``:
+        the lattice's dots per side, or (rows, cols); ``found`` (rows*cols,).
+
+        ``edges``: points on the screen's edges, (K, 4) arrays of image px and outward
+        normal, each set with the screen coordinate (0: x, 1: y) and value it must map
+        to (e.g. the top edge: y = -0.5); each point weighs ``edge_weight`` of a dot
+        coordinate. They hold the model where it extrapolates beyond the outer dots.
+        One common offset along the normals is fitted with them: where an edge
+        appears to be depends on blur and the camera's tone curve, its shape does
+        not."""
+        rows, cols = (n, n) if isinstance(n, int) else (int(n[0]), int(n[1]))
         w, h = image_size
         scale = 0.5 * float(np.hypot(w, h))
         c0 = np.array([(w - 1) / 2, (h - 1) / 2])
@@ -237,58 +251,81 @@ class RadialMap:
         p0 = np.concatenate([c0, [0.0, 0.0, 0.0], hmat.ravel()[:8]])
         sx = float(np.ptp(xy[:, 0])) or 1.0
 
-        def resid(p: FloatArray, k: int) -> FloatArray:
-            pp = p.copy()
-            pp[2 + k : 5] = 0.0
-            return (_radial_apply(pp, uv, scale) - xy).ravel() / sx
+        edge_sets = [
+            (np.asarray(e, np.float64).reshape(-1, 4), a, v) for e, a, v in edges or () if len(e)
+        ]
+        weight = math.sqrt(edge_weight)
+        use = bool(edge_sets)
 
-        p = p0
+        def resid(p: FloatArray, k: int) -> FloatArray:
+            pp = p[:13].copy()
+            pp[2 + k : 5] = 0.0
+            parts = [(_radial_apply(pp, uv, scale) - xy).ravel()]
+            for e, axis, value in edge_sets:  # edge points land on their screen edge
+                pts = e[:, :2] + p[13] * e[:, 2:]  # shifted along the normal by delta
+                parts.append(weight * (_radial_apply(pp, pts, scale)[:, axis] - value))
+            return np.concatenate(parts) / sx
+
+        p = np.append(p0, 0.0)  # the last: the edges' common offset delta (image px)
         terms = 3 if found.all() else 2  # a partial grid: fewer terms extrapolate better
         for k in range(1, terms + 1):  # grow the radial series: stabler than all at once
 
             def cost(q: FloatArray, k: int = k) -> FloatArray:
+                if not use:
+                    q = np.append(q[:13], 0.0)
                 return resid(q, k)
 
-            p = levenberg_marquardt(cost, p)
+            p = (
+                levenberg_marquardt(cost, p)
+                if use
+                else np.append(levenberg_marquardt(cost, p[:13]), 0.0)
+            )
             p[2 + k : 5] = 0.0
-        model = cls(p, scale, np.zeros((n, n, 2)), lattice)
+        p = p[:13]
+        model = cls(p, scale, np.zeros((rows, cols, 2)), lattice)
         if correct:
-            res = np.zeros((n * n, 2))
+            res = np.zeros((rows * cols, 2))
             res[found] = xy - _radial_apply(p, uv, scale)
-            model.residual = res.reshape(n, n, 2)
+            model.residual = res.reshape(rows, cols, 2)
         return model
 
     def params(self) -> Params:
-        n = self.residual.shape[0]
+        rows, cols = self.residual.shape[:2]
         return {
             "radial_params": self.p,
             "radial_scale": np.array([self.scale]),
-            "residual": self.residual.reshape(n * n, 2),
+            "residual": self.residual.reshape(rows * cols, 2),
+            "residual_shape": np.array([rows, cols], np.float64),
             "lattice": self.lattice,
         }
 
     @classmethod
     def from_params(cls, params: Params) -> RadialMap:
         res = params["residual"]
-        n = math.isqrt(len(res))
+        shape = params.get("residual_shape")
+        if shape is None:  # format 1: square
+            n = math.isqrt(len(res))
+            rows, cols = n, n
+        else:
+            rows, cols = (round(float(v)) for v in np.ravel(shape)[:2])
         return cls(
             params["radial_params"].ravel(),
             float(params["radial_scale"].ravel()[0]),
-            res.reshape(n, n, 2),
+            res.reshape(rows, cols, 2),
             params["lattice"].ravel(),
         )
 
     def correction(self, xy: FloatArray) -> FloatArray:
         """Bilinear interpolation of the dot residuals at screen ``xy`` (clamped at the
         outer dots)."""
-        n = self.residual.shape[0]
+        rows, cols = self.residual.shape[:2]
         x0, y0, sx, sy = self.lattice
-        fx = np.clip((xy[:, 0] - x0) / sx, 0, n - 1)
-        fy = np.clip((xy[:, 1] - y0) / sy, 0, n - 1)
+        fx = np.clip((xy[:, 0] - x0) / sx, 0, cols - 1)
+        fy = np.clip((xy[:, 1] - y0) / sy, 0, rows - 1)
         fx = np.nan_to_num(fx)
         fy = np.nan_to_num(fy)
-        ix = np.minimum(fx.astype(np.int64), n - 2)
-        iy = np.minimum(fy.astype(np.int64), n - 2)
+        ix = np.minimum(fx.astype(np.int64), cols - 2)
+        iy = np.minimum(fy.astype(np.int64), rows - 2)
         ax, ay = (fx - ix)[:, None], (fy - iy)[:, None]
         r = self.residual
         return np.asarray(
