@@ -111,6 +111,25 @@ def inverse_bilinear(quads: FloatArray, pts: FloatArray, iterations: int = 8) ->
     return st
 
 
+def inverse_bilinear_pairs(quads: FloatArray, pts: FloatArray, iterations: int = 8) -> FloatArray:
+    """(s, t) of point k in quad k, (K, 2): :func:`inverse_bilinear` for given pairs."""
+    if len(pts) == 0:
+        return np.zeros((0, 2))
+    q0, q1, q2, q3 = (quads[:, k] for k in range(4))
+    out = np.full((len(pts), 2), 0.5)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for _ in range(iterations):
+            s, t = out[:, :1], out[:, 1:]
+            f = (1 - s) * (1 - t) * q0 + s * (1 - t) * q1 + s * t * q2 + (1 - s) * t * q3 - pts
+            ds = (1 - t) * (q1 - q0) + t * (q2 - q3)
+            dt = (1 - s) * (q3 - q0) + s * (q2 - q1)
+            det = ds[:, 0] * dt[:, 1] - ds[:, 1] * dt[:, 0]
+            det = np.where(np.abs(det) < 1e-12, np.nan, det)
+            out[:, 0] -= (f[:, 0] * dt[:, 1] - f[:, 1] * dt[:, 0]) / det
+            out[:, 1] -= (ds[:, 0] * f[:, 1] - ds[:, 1] * f[:, 0]) / det
+    return out
+
+
 class CellMap:
     """Interpolation in the basic regions of the landmark grid (``idw`` or ``bilinear``)."""
 
@@ -134,29 +153,38 @@ class CellMap:
         pts = _as_points(uv)
         out = np.full(pts.shape, np.nan)
         eps = 1e-6
+        qi = self.quads_image
+        lo_b, hi_b = qi.min(axis=1) - 1e-6, qi.max(axis=1) + 1e-6  # a cell lies in its corners' box
         for lo in range(0, len(pts), 4096):
             chunk = pts[lo : lo + 4096]
-            st = inverse_bilinear(self.quads_image, chunk)
-            inside = np.all((st >= -eps) & (st <= 1 + eps), axis=2)
-            inside &= np.isfinite(st).all(axis=2)
-            has = inside.any(axis=1)
-            q = np.argmax(inside, axis=1)[has]
-            p = chunk[has]
-            corners_s = self.quads_screen[q]
+            inbox = (
+                (chunk[:, None, 0] >= lo_b[None, :, 0])
+                & (chunk[:, None, 0] <= hi_b[None, :, 0])
+                & (chunk[:, None, 1] >= lo_b[None, :, 1])
+                & (chunk[:, None, 1] <= hi_b[None, :, 1])
+            )
+            pi, cq = np.nonzero(inbox)  # candidate (point, cell) pairs, cells ascending
+            st = inverse_bilinear_pairs(qi[cq], chunk[pi])
+            ok = np.all((st >= -eps) & (st <= 1 + eps), axis=1) & np.isfinite(st).all(axis=1)
+            pi, cq, st = pi[ok], cq[ok], st[ok]
+            first = np.r_[True, pi[1:] != pi[:-1]]  # the lowest-numbered cell holding it
+            pi, cq, st = pi[first], cq[first], st[first]
+            p = chunk[pi]
+            corners_s = self.quads_screen[cq]
             if self.name == "bilinear":
-                s, t = st[has, q, :1], st[has, q, 1:]
+                s_, t_ = st[:, :1], st[:, 1:]
                 res = (
-                    (1 - s) * (1 - t) * corners_s[:, 0]
-                    + s * (1 - t) * corners_s[:, 1]
-                    + s * t * corners_s[:, 2]
-                    + (1 - s) * t * corners_s[:, 3]
+                    (1 - s_) * (1 - t_) * corners_s[:, 0]
+                    + s_ * (1 - t_) * corners_s[:, 1]
+                    + s_ * t_ * corners_s[:, 2]
+                    + (1 - s_) * t_ * corners_s[:, 3]
                 )
             else:  # eqs. 5.4-5.5: w_k = 1 / d_k
-                d = np.hypot(*(self.quads_image[q] - p[:, None, :]).transpose(2, 0, 1))
+                d = np.hypot(*(qi[cq] - p[:, None, :]).transpose(2, 0, 1))
                 wgt = 1.0 / np.maximum(d, 1e-9)
                 res = (wgt[..., None] * corners_s).sum(axis=1) / wgt.sum(axis=1)[:, None]
             block = out[lo : lo + 4096]
-            block[has] = res
+            block[pi] = res
         return out
 
 
