@@ -104,3 +104,38 @@ def test_cli_json_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert rc == 0 and json.loads(out.read_text()) == doc
     assert doc["seed_range"] == [1003, 1003] and len(doc["per_scene"]) == 1
     assert doc["summary"]["acceptance"][0]["bound"] == "<= 0.01"
+
+
+def test_cli_replays_one_scene_and_writes_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "scene"
+    rc = main(
+        ["eval", "screen", "--scene-seed", "1003", "--write", str(out), "--opt", "coded=false"]
+    )
+    text = capsys.readouterr().out
+    assert rc == 0 and "scene 1003: ok" in text and "radial.rms" in text
+    for name in ("white.png", "black.png", "dots.png"):
+        assert (out / name).is_file()
+    truth = json.loads((out / "truth.json").read_text())
+    assert len(truth["image_points"]) == len(truth["screen_points"]) > 1000
+    # the written truth file is one `calibrate screen --truth` takes
+    rc = main(
+        [
+            "calibrate",
+            "screen",
+            "--white",
+            str(out / "white.png"),
+            "--black",
+            str(out / "black.png"),
+            "--dots",
+            str(out / "dots.png"),
+            "--layout",
+            str(out / "layout.json"),
+            "-o",
+            str(tmp_path / "c.yml"),
+            "--truth",
+            str(out / "truth.json"),
+        ]
+    )
+    assert rc == 0 and "truth points:" in capsys.readouterr().out
