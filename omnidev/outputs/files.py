@@ -50,10 +50,10 @@ def is_image_path(path: Path) -> bool:
 
 
 def rate_fraction(fps: float) -> Fraction:
-    """A frame rate as the fraction containers store (29.97 -> 30000/1001).
+    """A frame rate as the fraction containers store (NTSC's 29.97... -> 30000/1001).
 
-    >>> rate_fraction(29.97), rate_fraction(25.0)
-    (Fraction(30000, 1001), Fraction(25, 1))
+    >>> rate_fraction(30000 / 1001), rate_fraction(25.0), rate_fraction(29.97)
+    (Fraction(30000, 1001), Fraction(25, 1), Fraction(2997, 100))
     """
     return Fraction(fps).limit_denominator(1001)
 

@@ -4,7 +4,13 @@ With v4l2loopback (docs/outputs.md has its setup) the frames written here
 appear on the same node as a camera that a browser, OBS, ffmpeg, GStreamer or
 a video call opens. The device is set to the view's size and the chosen pixel
 format (``VIDIOC_S_FMT`` on the output side, frame rate by ``VIDIOC_S_PARM``)
-and every frame is handed over with ``write()``:
+and every frame is handed over in a memory-mapped buffer (``io=mmap``, the
+default: ``VIDIOC_QBUF`` with the frame's capture time as the buffer timestamp,
+``VIDIOC_STREAMOFF`` when closed) or by ``write()`` (``io=write``, for drivers
+without streaming). Streaming matters for v4l2loopback with
+``exclusive_caps=1`` (what browsers need): version 0.12 leaves the device neither
+capture nor output after a ``write()`` producer closes, so the next one cannot
+open it; after ``STREAMOFF`` it takes the next producer.
 
 | ``format`` | V4L2 fourcc | bytes per frame | note |
 |---|---|---|---|
@@ -26,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import mmap
 import os
 import stat
 import struct
@@ -56,6 +63,21 @@ _STREAMPARM_SIZE = 204
 VIDIOC_QUERYCAP = _ior(0, _CAPABILITY.size)
 VIDIOC_S_FMT = _iowr(5, _FORMAT_SIZE)
 VIDIOC_S_PARM = _iowr(22, _STREAMPARM_SIZE)
+_REQBUFS = struct.Struct("IIII4x")  # struct v4l2_requestbuffers, 20 bytes
+# struct v4l2_buffer on 64-bit (88 bytes): index type bytesused flags field, pad,
+# timeval (sec, usec), timecode (16 bytes), sequence memory, m (offset | pointer),
+# length, reserved2, request_fd, pad.
+_BUFFER = struct.Struct("IIIII4xqq16xII8sIIi4x")
+VIDIOC_REQBUFS = _iowr(8, _REQBUFS.size)
+VIDIOC_QUERYBUF = _iowr(9, _BUFFER.size)
+VIDIOC_QBUF = _iowr(15, _BUFFER.size)
+VIDIOC_DQBUF = _iowr(17, _BUFFER.size)
+VIDIOC_STREAMON = (1 << 30) | (4 << 16) | (ord("V") << 8) | 18
+VIDIOC_STREAMOFF = (1 << 30) | (4 << 16) | (ord("V") << 8) | 19
+MEMORY_MMAP = 1
+BUF_FLAG_TIMESTAMP_COPY = 0x4000
+CAP_STREAMING = 0x04000000
+BUFFERS = 4
 BUF_TYPE_VIDEO_OUTPUT = 2
 CAP_VIDEO_OUTPUT = 0x00000002
 CAP_READWRITE = 0x01000000
@@ -92,13 +114,16 @@ class V4L2Output(OutputBase):
 
     def __init__(self, device: str, options: dict[str, str], spec: OutputSpec) -> None:
         self.name = f"v4l2:{device}"
-        check_output_options(self.name, options, {"format", "pace"})
+        check_output_options(self.name, options, {"format", "pace", "io"})
         fmt = options.get("format", "gray" if spec.gray else "yuyv").lower()
         if fmt not in FORMATS:
             raise OutputError(f"{self.name}: format={fmt!r}; formats: {', '.join(FORMATS)}")
         pace = options.get("pace", "auto").lower()
         if pace not in ("auto", "0", "1"):
             raise OutputError(f"{self.name}: pace={pace!r} must be auto, 0 or 1")
+        io = options.get("io", "auto").lower()
+        if io not in ("auto", "mmap", "write"):
+            raise OutputError(f"{self.name}: io={io!r} must be auto, mmap or write")
         w, h = spec.size
         code, bpp2, layout = FORMATS[fmt]
         if (fmt == "yuyv" and w % 2) or (fmt in ("yu12", "nv12") and (w % 2 or h % 2)):
@@ -133,21 +158,31 @@ class V4L2Output(OutputBase):
             ) from None
         except OSError as exc:
             raise OutputError(f"{self.name}: cannot open: {exc.strerror}") from None
+        self._maps: list[mmap.mmap] = []
+        self._queued = 0
+        self._streaming = False
         try:
-            self.card = self._check_caps()
+            self.card, caps = self._check_caps()
+            self.io = io if io != "auto" else ("mmap" if caps & CAP_STREAMING else "write")
+            if self.io == "write" and not caps & CAP_READWRITE:
+                raise OutputError(f"{self.name}: the driver does not take frames by write()")
+            if self.io == "mmap" and not caps & CAP_STREAMING:
+                raise OutputError(f"{self.name}: the driver has no streaming I/O (use io=write)")
             self._set_format(code)
             self._set_rate()
+            if self.io == "mmap":
+                self._request_buffers()
         except BaseException:
-            os.close(self._fd)
+            self._release()
             raise
 
-    def _check_caps(self) -> str:
+    def _check_caps(self) -> tuple[str, int]:
         buf = bytearray(_CAPABILITY.size)
         try:
             fcntl.ioctl(self._fd, VIDIOC_QUERYCAP, buf)
         except OSError as exc:
             raise OutputError(f"{self.name}: not a V4L2 device ({exc.strerror})") from None
-        driver, card, _, _, caps, device_caps = _CAPABILITY.unpack(buf)
+        _, card, _, _, caps, device_caps = _CAPABILITY.unpack(buf)
         have = device_caps if caps & CAP_DEVICE_CAPS else caps
         card_name = str(card.split(b"\0", 1)[0].decode(errors="replace"))
         if not have & CAP_VIDEO_OUTPUT:
@@ -155,10 +190,7 @@ class V4L2Output(OutputBase):
                 f"{self.name}: {card_name!r} is not a video output device (a capture node?); "
                 "with v4l2loopback write to the loopback node itself"
             )
-        if not have & CAP_READWRITE:
-            drv = driver.split(b"\0", 1)[0].decode(errors="replace")
-            raise OutputError(f"{self.name}: driver {drv} does not take frames by write()")
-        return card_name
+        return card_name, int(have)
 
     def _set_format(self, code: str) -> None:
         w, h = self.spec.size
@@ -184,7 +216,8 @@ class V4L2Output(OutputBase):
                 f"{self.name}: asked for {w}x{h} {code}, the device set "
                 f"{got[0]}x{got[1]} {struct.pack('<I', got[2]).decode(errors='replace')}"
             )
-        self.frame_bytes = int(got[5]) or self.frame_bytes
+        # got[5] (sizeimage) may be rounded up to whole pages (v4l2loopback): a frame is
+        # still written as its own bytes.
 
     def _set_rate(self) -> None:
         rate = rate_fraction(self.spec.fps)
@@ -195,6 +228,51 @@ class V4L2Output(OutputBase):
                          rate.numerator)  # fmt: skip
         with contextlib.suppress(OSError):  # a rate the driver ignores is no error
             fcntl.ioctl(self._fd, VIDIOC_S_PARM, buf)
+
+    def _request_buffers(self) -> None:
+        req = bytearray(_REQBUFS.pack(BUFFERS, BUF_TYPE_VIDEO_OUTPUT, MEMORY_MMAP, 0))
+        try:
+            fcntl.ioctl(self._fd, VIDIOC_REQBUFS, req)
+        except OSError as exc:
+            raise OutputError(f"{self.name}: cannot get buffers: {exc.strerror}") from None
+        count = _REQBUFS.unpack(req)[0]
+        if count < 1:
+            raise OutputError(f"{self.name}: the driver gave no buffers")
+        for i in range(count):
+            buf = bytearray(_BUFFER.size)
+            struct.pack_into("II", buf, 0, i, BUF_TYPE_VIDEO_OUTPUT)
+            struct.pack_into("I", buf, 60, MEMORY_MMAP)
+            fcntl.ioctl(self._fd, VIDIOC_QUERYBUF, buf)
+            fields = _BUFFER.unpack(buf)
+            offset, length = struct.unpack_from("I", fields[9])[0], fields[10]
+            if length < self.frame_bytes:
+                raise OutputError(
+                    f"{self.name}: buffer {i} holds {length} bytes, a frame {self.frame_bytes}"
+                )
+            self._maps.append(mmap.mmap(self._fd, length, offset=offset))
+
+    def _queue(self, data: np.ndarray, frame: Frame) -> None:
+        """Fill a free buffer with the frame and queue it (stamped with its capture time)."""
+        buf = bytearray(_BUFFER.size)
+        if self._queued < len(self._maps):
+            index = self._queued
+        else:
+            struct.pack_into("II", buf, 0, 0, BUF_TYPE_VIDEO_OUTPUT)
+            struct.pack_into("I", buf, 60, MEMORY_MMAP)
+            fcntl.ioctl(self._fd, VIDIOC_DQBUF, buf)  # a buffer the driver is done with
+            index = struct.unpack_from("I", buf, 0)[0]
+        view = data.data.cast("B")
+        self._maps[index][: len(view)] = view
+        sec, nsec = divmod(int(frame.timestamp_ns), 1_000_000_000)
+        packed = _BUFFER.pack(
+            index, BUF_TYPE_VIDEO_OUTPUT, len(view), BUF_FLAG_TIMESTAMP_COPY, FIELD_NONE,
+            sec, nsec // 1000, 0, MEMORY_MMAP, bytes(8), len(self._maps[index]), 0, 0,
+        )  # fmt: skip
+        fcntl.ioctl(self._fd, VIDIOC_QBUF, bytearray(packed))
+        self._queued += 1
+        if not self._streaming:
+            fcntl.ioctl(self._fd, VIDIOC_STREAMON, struct.pack("i", BUF_TYPE_VIDEO_OUTPUT))
+            self._streaming = True
 
     def _pixels(self, frame: Frame) -> np.ndarray:
         image = frame.image
@@ -222,25 +300,40 @@ class V4L2Output(OutputBase):
             if self._next_ns > now:
                 time.sleep((self._next_ns - now) / 1e9)
             self._next_ns = max(self._next_ns + self._period_ns, time.monotonic_ns())
-        view = data.data.cast("B")
         try:
-            done = os.write(self._fd, view)
-            while done < len(view):
-                done += os.write(self._fd, view[done:])
+            if self.io == "mmap":
+                self._queue(data, frame)
+            else:
+                view = data.data.cast("B")
+                done = os.write(self._fd, view)
+                while done < len(view):
+                    done += os.write(self._fd, view[done:])
         except OSError as exc:
             raise OutputError(
                 f"{self.name}: writing frame {frame.index} failed: {exc.strerror}"
             ) from None
         self.frames += 1
 
+    def _release(self) -> None:
+        if self._fd < 0:
+            return
+        if self._streaming:
+            with contextlib.suppress(OSError):
+                fcntl.ioctl(self._fd, VIDIOC_STREAMOFF, struct.pack("i", BUF_TYPE_VIDEO_OUTPUT))
+            self._streaming = False
+        for m in self._maps:
+            with contextlib.suppress(Exception):
+                m.close()
+        self._maps = []
+        os.close(self._fd)
+        self._fd = -1
+
     def close(self) -> None:
-        if self._fd >= 0:
-            os.close(self._fd)
-            self._fd = -1
+        self._release()
 
     def abort(self) -> None:
         with contextlib.suppress(OSError):
-            self.close()
+            self._release()
 
 
 def open_v4l2_output(rest: str, options: dict[str, str], spec: OutputSpec) -> V4L2Output:
