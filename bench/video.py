@@ -7,8 +7,10 @@ turned 0.3 degrees further each frame, with sensor noise (sigma 2 levels).
 
 Cases (each the whole command a user runs, timed from process start to exit, so
 that loading the calibration and building the maps count; ``threads`` = the
-usable cores for both; the same output codec and quality for both: H.264 by
-libx264, preset veryfast, crf 20, 4:2:0 as decoded, .mp4):
+usable cores for both; the same output codec and quality for both, once with
+H.264 (libx264, preset veryfast, crf 20, .mp4: omnidev's default for .mp4) and
+once with Motion JPEG (q 3, .avi: omnidev's default for .avi, keys ``*_mjpeg``),
+4:2:0 as decoded):
 
 - ``fisheye_equirect``: ``--view equirect:2048x512`` (the whole sphere) against
   ``v360=fisheye:equirect`` (ih_fov=iv_fov=190, pitch=-90, yaw=90, rorder=pyr: the
@@ -65,8 +67,19 @@ from omnidev.sim.scene import RoomScene
 from omnidev.viewspec import parse_view
 
 SIZE = 1920
-ENCODE = ("-c:v", "libx264", "-preset", "veryfast", "-crf", "20")
-OMNIDEV_ENCODE = "?crf=20&preset=veryfast"
+# codec -> (ffmpeg's output options, (omnidev's suffix, file: options), description)
+CODECS: dict[str, tuple[tuple[str, ...], tuple[str, str], str]] = {
+    "h264": (
+        ("-c:v", "libx264", "-preset", "veryfast", "-crf", "20"),
+        (".mp4", "?crf=20&preset=veryfast"),
+        "libx264 preset veryfast crf 20, .mp4 (omnidev's default for .mp4)",
+    ),
+    "mjpeg": (
+        ("-c:v", "mjpeg", "-q:v", "3"),
+        (".avi", "?q=3"),
+        "Motion JPEG q 3, .avi (omnidev's default for .avi)",
+    ),
+}
 EQUIRECT = "equirect:2048x512"
 V360_EQUIRECT = (
     "v360=fisheye:equirect:ih_fov=190:iv_fov=190:pitch=-90:yaw=90:rorder=pyr:w=2048:h=512"
@@ -78,6 +91,7 @@ V360_FLAT = (
     f"h_fov=90:v_fov={V_FOV:.4f}:w=1280:h=720"
 )
 PANO = "panorama:2048x512"
+SHADE_SAMPLE = Path(__file__).resolve().parents[1] / "fixtures" / "omni_room" / "truth_panorama.png"
 
 
 def _threads() -> int:
@@ -177,7 +191,6 @@ def _psnr_valid(a_path: Path, b_path: Path, valid: np.ndarray) -> float:
 
 
 def _case(
-    name: str,
     frames: int,
     omnidev_cmd: list[str],
     ffmpeg_cmd: list[str],
@@ -262,6 +275,83 @@ def _api_vs_bare(camera_path: Path, quick: bool) -> dict[str, Any]:
     }
 
 
+def _cpu_s() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def _libraries(src: Path, frames: int, threads: int) -> dict[str, Any]:
+    """Decoding and encoding by cv2 and by PyAV: wall and CPU (all threads) ms per frame."""
+    import av
+
+    out: dict[str, Any] = {}
+
+    def timed(key: str, fn: Callable[[], int]) -> None:
+        c0, t0 = _cpu_s(), time.perf_counter()
+        n = fn()
+        out[key] = {
+            "wall_ms": round((time.perf_counter() - t0) / n * 1e3, 2),
+            "cpu_ms": round((_cpu_s() - c0) / n * 1e3, 2),
+        }
+
+    def cv2_decode() -> int:
+        cap, n = cv2.VideoCapture(str(src)), 0
+        while n < frames and cap.read()[0]:
+            n += 1
+        return n
+
+    def av_decode(fmt: str | None, t: int) -> Callable[[], int]:
+        def body() -> int:
+            n = 0
+            with av.open(str(src)) as c:
+                st = c.streams.video[0]
+                st.thread_type, st.thread_count = "AUTO", t
+                for f in c.decode(st):
+                    f.to_ndarray() if fmt is None else f.to_ndarray(format=fmt)
+                    n += 1
+                    if n == frames:
+                        break
+            return n
+
+        return body
+
+    timed("decode_cv2_bgr", cv2_decode)
+    timed("decode_pyav_planes_1thread", av_decode(None, 1))
+    timed(f"decode_pyav_planes_{threads}threads", av_decode(None, threads))
+    timed("decode_pyav_bgr_1thread", av_decode("bgr24", 1))
+    pano = cv2.resize(cv2.imread(str(SHADE_SAMPLE)) if SHADE_SAMPLE.exists() else
+                      np.full((512, 2048, 3), 128, np.uint8), (2048, 512))  # fmt: skip
+    n_enc = min(frames, 60)
+
+    def cv2_encode() -> int:
+        with tempfile.TemporaryDirectory() as d:
+            w = cv2.VideoWriter(f"{d}/a.mp4", cv2.VideoWriter.fourcc(*"mp4v"), 30, (2048, 512))
+            for i in range(n_enc):
+                w.write(np.roll(pano, 8 * i, axis=1))
+            w.release()
+        return n_enc
+
+    def av_encode(codec: str, opts: dict[str, str]) -> Callable[[], int]:
+        def body() -> int:
+            with tempfile.TemporaryDirectory() as d, av.open(f"{d}/a.mp4", "w") as c:
+                st = c.add_stream(codec, rate=30, options=opts)
+                st.width, st.height, st.pix_fmt, st.thread_count = 2048, 512, "yuv420p", threads
+                for i in range(n_enc):
+                    img = cv2.cvtColor(np.roll(pano, 8 * i, axis=1), cv2.COLOR_BGR2YUV_I420)
+                    for pkt in st.encode(av.VideoFrame.from_ndarray(img, format="yuv420p")):
+                        c.mux(pkt)
+                for pkt in st.encode(None):
+                    c.mux(pkt)
+            return n_enc
+
+        return body
+
+    timed("encode_cv2_mp4v", cv2_encode)
+    timed("encode_pyav_mpeg4", av_encode("mpeg4", {}))
+    timed("encode_pyav_libx264_veryfast", av_encode("libx264", {"preset": "veryfast"}))
+    return out
+
+
 def run(quick: bool = False) -> dict[str, Any]:
     if shutil.which("ffmpeg") is None:
         raise RuntimeError("bench video needs ffmpeg (apt-get install ffmpeg)")
@@ -279,48 +369,58 @@ def run(quick: bool = False) -> dict[str, Any]:
         omnidev_bin = str(Path(sys.executable).parent / "omnidev")
         t = str(threads)
 
-        def om(camera: Path, view: str, out: Path, *more: str) -> list[str]:
-            return [
-                omnidev_bin, "unwarp", str(src), "--camera", str(camera), "--view", view,
-                "-o", f"file:{out}{OMNIDEV_ENCODE}", "--force", "--threads", t, "--stats", *more,
-            ]  # fmt: skip
-
-        def ff(out: Path, *graph: str) -> list[str]:
-            return ["ffmpeg", "-v", "error", "-y", "-threads", t, "-i", str(src), *graph,
-                    "-filter_threads", t, "-filter_complex_threads", t, *ENCODE, "-threads", t,
-                    str(out)]  # fmt: skip
-
         result: dict[str, Any] = {
             "input": f"{frames} frames {SIZE}x{SIZE} MJPEG q3 yuvj420p",
-            "output_codec": "libx264 preset veryfast crf 20, .mp4",
+            "codecs": {k: v[2] for k, v in CODECS.items()},
             "threads": threads,
             "reps": reps,
-            "load_avg_1min": round(os.getloadavg()[0], 2),
+            "load_avg_1min_start": round(os.getloadavg()[0], 2),
         }
         cam = omnidev.load_camera(fisheye)
-        eq_valid = build_maps(cam, parse_view(EQUIRECT)).valid
-        flat_valid = build_maps(cam, parse_view(FLAT)).valid
-        o1, f1 = work / "eq_omnidev.mp4", work / "eq_ffmpeg.mp4"
-        result["fisheye_equirect"] = _case(
-            "fisheye_equirect", frames, om(fisheye, EQUIRECT, o1), ff(f1, "-vf", V360_EQUIRECT),
-            (o1, f1), eq_valid, reps,
-        )  # fmt: skip
-        o2, f2 = work / "flat_omnidev.mp4", work / "flat_ffmpeg.mp4"
-        result["fisheye_flat"] = _case(
-            "fisheye_flat", frames, om(fisheye, FLAT, o2), ff(f2, "-vf", V360_FLAT),
-            (o2, f2), flat_valid, reps,
-        )  # fmt: skip
+        valid = {
+            "eq": build_maps(cam, parse_view(EQUIRECT)).valid,
+            "flat": build_maps(cam, parse_view(FLAT)).valid,
+            "pano": build_maps(omnidev.load_camera(table), parse_view(PANO)).valid,
+        }
         xmap, ymap = _pgm_maps(table, PANO, work)
-        pano_valid = build_maps(omnidev.load_camera(table), parse_view(PANO)).valid
-        o3, f3 = work / "pano_omnidev.mp4", work / "pano_ffmpeg.mp4"
-        graph = "[0:v]format=yuvj444p[s];[s][1:v][2:v]remap,format=yuvj420p[o]"
-        ff_remap = ["ffmpeg", "-v", "error", "-y", "-threads", t, "-i", str(src), "-i", str(xmap),
-                    "-i", str(ymap), "-filter_complex", graph, "-map", "[o]", "-filter_threads",
-                    t, "-filter_complex_threads", t, *ENCODE, "-threads", t, str(f3)]  # fmt: skip
-        o4 = work / "pano_linear.mp4"
-        result["pano_table"] = _case(
-            "pano_table", frames, om(table, PANO, o3, "--interpolation", "nearest"), ff_remap,
-            (o3, f3), pano_valid, reps, {"omnidev_linear_fps": om(table, PANO, o4)},
-        )  # fmt: skip
+        for codec, (ff_args, suffix_query, _) in CODECS.items():
+            tag = "" if codec == "h264" else f"_{codec}"
+            suffix, query = suffix_query
+
+            def om(camera: Path, view: str, out: Path, *more: str, query: str = query) -> list[str]:
+                return [
+                    omnidev_bin, "unwarp", str(src), "--camera", str(camera), "--view", view,
+                    "-o", f"file:{out}{query}", "--force", "--threads", t, "--stats", *more,
+                ]  # fmt: skip
+
+            def ff(out: Path, *graph: str, ff_args: tuple[str, ...] = ff_args) -> list[str]:
+                return ["ffmpeg", "-v", "error", "-y", "-threads", t, "-i", str(src), *graph,
+                        "-filter_threads", t, "-filter_complex_threads", t, *ff_args,
+                        "-threads", t, str(out)]  # fmt: skip
+
+            o1, f1 = work / f"eq_omnidev{suffix}", work / f"eq_ffmpeg{suffix}"
+            result[f"fisheye_equirect{tag}"] = _case(
+                frames, om(fisheye, EQUIRECT, o1), ff(f1, "-vf", V360_EQUIRECT), (o1, f1),
+                valid["eq"], reps,
+            )  # fmt: skip
+            o2, f2 = work / f"flat_omnidev{suffix}", work / f"flat_ffmpeg{suffix}"
+            result[f"fisheye_flat{tag}"] = _case(
+                frames, om(fisheye, FLAT, o2), ff(f2, "-vf", V360_FLAT), (o2, f2),
+                valid["flat"], reps,
+            )  # fmt: skip
+            o3, f3 = work / f"pano_omnidev{suffix}", work / f"pano_ffmpeg{suffix}"
+            graph = "[0:v]format=yuvj444p[s];[s][1:v][2:v]remap,format=yuvj420p[o]"
+            ff_remap = [
+                "ffmpeg", "-v", "error", "-y", "-threads", t, "-i", str(src), "-i", str(xmap),
+                "-i", str(ymap), "-filter_complex", graph, "-map", "[o]", "-filter_threads", t,
+                "-filter_complex_threads", t, *ff_args, "-threads", t, str(f3),
+            ]  # fmt: skip
+            o4 = work / f"pano_linear{suffix}"
+            result[f"pano_table{tag}"] = _case(
+                frames, om(table, PANO, o3, "--interpolation", "nearest"), ff_remap, (o3, f3),
+                valid["pano"], reps, {"omnidev_linear_fps": om(table, PANO, o4)},
+            )  # fmt: skip
+        result["load_avg_1min_end"] = round(os.getloadavg()[0], 2)
         result.update(_api_vs_bare(table, quick))
+        result["libraries"] = _libraries(src, 60 if quick else 150, threads)
     return result

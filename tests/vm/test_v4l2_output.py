@@ -108,7 +108,7 @@ def _loopback() -> None:
     assert name.read_text().strip() == CARD
 
 
-def _wait_for_format(writer: subprocess.Popen[bytes], log: Path, timeout_s: float = 180) -> None:
+def _wait_for_format(writer: subprocess.Popen[bytes], log: Path, timeout_s: float = 900) -> None:
     """Until the writer has set the device's format and sent a frame (capture side shows it)."""
     deadline = time.monotonic() + timeout_s
     out = None
@@ -119,7 +119,7 @@ def _wait_for_format(writer: subprocess.Popen[bytes], log: Path, timeout_s: floa
         if f"{W}/{H}".encode() in out.stdout:
             return
         time.sleep(0.05)
-    raise AssertionError(f"the writer never set {NODE}'s format: {out}")
+    raise AssertionError(f"the writer never set {NODE}'s format: {out}; {log.read_text()}")
 
 
 def _stream(clip: Clip, fmt: str, reader: list[str], tmp: Path) -> tuple[float, str]:
