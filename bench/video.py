@@ -34,6 +34,12 @@ Also (single-threaded, 1920x1920 BGR -> 2048x512 panorama, medians):
 ``api_unwarp_ms`` (``omnidev.unwarp``), ``bare_fixed_remap_ms`` (cv2.remap with
 the fixed-point maps), ``bare_float_remap_ms`` (cv2.remap with the float maps),
 ``api_ratio_vs_fixed_remap`` (target <= 1.05).
+
+``libraries``: wall and CPU (all threads) ms per frame of decoding the input by
+cv2.VideoCapture (BGR) and by PyAV (its 4:2:0 planes, 1 and ``threads`` threads;
+BGR), and of encoding 2048x512 frames by cv2.VideoWriter (mp4v, all the pip
+wheel offers) and by PyAV (mpeg4, libx264 veryfast): why omnidev reads and
+writes video files through PyAV (docs/outputs.md).
 """
 
 from __future__ import annotations
