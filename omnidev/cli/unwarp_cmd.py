@@ -55,7 +55,8 @@ def register(sub: Any) -> None:
         description="Unwarp an omni-image, video or live source into one or more views. "
         "Pair each --view with an -o output, in order. View syntax: "
         "panorama:WxH[,elev=LO:HI] | cylinder:WxH,d=D,z=LO:HI | plane:WxH,d=D,w=W,z=LO:HI"
-        "[,az=DEG] | perspective:WxH[,fov=DEG,pan=DEG,tilt=DEG,roll=DEG] | top:WxH,x=X,y=Y,z=Z"
+        "[,az=DEG] | plane:WxH,c=X:Y:Z,n=NX:NY:NZ,w=W,h=H[,roll=DEG] (any plane: centre, "
+        "normal, size) | perspective:WxH[,fov=DEG,pan=DEG,tilt=DEG,roll=DEG] | top:WxH,x=X,y=Y,z=Z"
         " | equirect:WxH[,lon=L:R,lat=B:T]. Outputs: an image or video path "
         "(file:PATH?crf=&preset=&codec=), - or y4m:- (a Y4M stream on standard output), "
         "raw:-?format=bgr24, v4l2:/dev/videoN?format=yuyv (docs/outputs.md).",
