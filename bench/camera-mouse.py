@@ -46,7 +46,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     det_ms: list[float] = []
     trk_ms: list[float] = []
     parts: dict[str, list[float]] = {"to_gray": [], "landmarks": [], "cursor": []}
-    tracker = LandmarkTracker(predict="flow")  # the plugin's default
+    tracker = LandmarkTracker()
     first = detect_landmarks(frames[0], layout)
     assert first is not None, "no landmarks detected in the benchmark's first frame"
     radius = (
