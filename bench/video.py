@@ -23,17 +23,45 @@ once with Motion JPEG (q 3, .avi: omnidev's default for .avi, keys ``*_mjpeg``),
   PGM files (remap is nearest-neighbour and takes 4:4:4, so the graph is
   ``format=yuvj444p,remap,format=yuvj420p``). ``omnidev_linear_fps``: omnidev's
   default bilinear interpolation.
+- ``nonsvp``: a non-single-viewpoint hyperbolic-mirror camera (omnidev.sim's
+  dissertation camera at 1920x1920, ``nonsvp-hyper`` file), ``--view
+  panorama:2048x512`` nearest-neighbour against the same ``remap`` graph fed its
+  maps. (The input frames are the fisheye renders: the speed of a remap does not
+  depend on what the pixels show.) Its maps take seconds to build (numerical
+  forward projection of every view pixel); that is part of omnidev's command,
+  while ffmpeg is handed the maps ready-made: ``stage_split.setup_s`` says how much.
 
 Per case: ``omnidev_fps``, ``ffmpeg_fps`` (frames / median wall time over
 ``reps`` interleaved runs), ``ratio_vs_ffmpeg`` = omnidev_fps / ffmpeg_fps, both
 processes' CPU seconds, and omnidev's per-stage split from ``--stats``: setup
 (calibration + maps) and, per pipeline thread, its busy time as a share of the
 pipeline's wall time (the decoder's and encoder's own threads are not in it).
+``codec_only_fps``: ffmpeg decoding the same input and encoding an output of the
+same size with the same codec, quality and threads, the geometry replaced by the
+cheapest filter there is (``scale=W:H:flags=neighbor``); ``ratio_ceiling`` =
+codec_only_fps / ffmpeg_fps is the ratio an unwarper that costs nothing would
+reach with these codecs. On a machine whose cores are all busy (as here, shared),
+where wall time follows CPU time, an unwarper that decodes and encodes through
+FFmpeg's codecs cannot beat it; on an idle machine only by threading the codecs
+better than ffmpeg does.
+``ratio_paired``: the median over repetitions of each interleaved pair's ratio
+(steadier than the ratio of medians when the machine's load changes during a run).
+
+Environment: ``OMNIDEV_BENCH_CACHE`` (a folder keeping the generated input between
+runs), ``OMNIDEV_BENCH_REPS`` (repetitions; 3, or 1 with --quick),
+``OMNIDEV_BENCH_CODECS`` (``h264,mjpeg``: a subset runs fewer cases),
+``OMNIDEV_BENCH_LINEAR=0`` (skip the ``omnidev_linear_fps`` runs).
 
 Also (single-threaded, 1920x1920 BGR -> 2048x512 panorama, medians):
 ``api_unwarp_ms`` (``omnidev.unwarp``), ``bare_fixed_remap_ms`` (cv2.remap with
 the fixed-point maps), ``bare_float_remap_ms`` (cv2.remap with the float maps),
 ``api_ratio_vs_fixed_remap`` (target <= 1.05).
+
+``libraries``: wall and CPU (all threads) ms per frame of decoding the input by
+cv2.VideoCapture (BGR) and by PyAV (its 4:2:0 planes, 1 and ``threads`` threads;
+BGR), and of encoding 2048x512 frames by cv2.VideoWriter (mp4v, all the pip
+wheel offers) and by PyAV (mpeg4, libx264 veryfast): why omnidev reads and
+writes video files through PyAV (docs/outputs.md).
 """
 
 from __future__ import annotations
@@ -55,13 +83,15 @@ import cv2
 import numpy as np
 
 import omnidev
-from omnidev.camera import build_maps
+from omnidev.camera import Maps, build_maps
 from omnidev.fisheye.camera import MOUNTS, FisheyeCamera
 from omnidev.fisheye.camfile import write_camera_file
 from omnidev.fisheye.models import IdealFisheye
+from omnidev.nonsvp.camfile import write_camera_file as write_nonsvp_file
 from omnidev.panotable.camfile import save_table
 from omnidev.panotable.table import calibrate
 from omnidev.sim.fisheye import EquidistantFisheyeCamera
+from omnidev.sim.nonsvp import preset_camera
 from omnidev.sim.render import render_omni
 from omnidev.sim.scene import RoomScene
 from omnidev.viewspec import parse_view
@@ -125,6 +155,12 @@ def _pano_table(folder: Path) -> Path:
     return path
 
 
+def _nonsvp(folder: Path) -> Path:
+    path = folder / "nonsvp.yml"
+    write_nonsvp_file(path, preset_camera("dissertation", (SIZE, SIZE)), force=True)
+    return path
+
+
 def _input(folder: Path, frames: int) -> Path:
     path = folder / f"fisheye_{SIZE}_{frames}.avi"
     if path.exists():
@@ -154,13 +190,12 @@ def _input(folder: Path, frames: int) -> Path:
     return path
 
 
-def _pgm_maps(camera_path: Path, view: str, folder: Path) -> tuple[Path, Path]:
+def _pgm_maps(maps: Maps, folder: Path, tag: str) -> tuple[Path, Path]:
     """omnidev's maps rounded to whole pixels as 16-bit PGM files for ffmpeg's remap filter."""
-    maps = build_maps(omnidev.load_camera(camera_path), parse_view(view))
     out = []
     for name, m in (("xmap", maps.map_x), ("ymap", maps.map_y)):
         v = np.where(maps.valid, np.rint(m), 65535).clip(0, 65535).astype(np.uint16)
-        p = folder / f"{name}.pgm"
+        p = folder / f"{tag}_{name}.pgm"
         cv2.imwrite(str(p), v)
         out.append(p)
     return out[0], out[1]
@@ -197,19 +232,21 @@ def _case(
     outputs: tuple[Path, Path],
     valid: np.ndarray,
     reps: int,
+    codec_only_cmd: list[str],
     extra: dict[str, list[str]] | None = None,
 ) -> dict[str, Any]:
-    walls: dict[str, list[float]] = {"omnidev": [], "ffmpeg": []}
-    cpus: dict[str, list[float]] = {"omnidev": [], "ffmpeg": []}
+    walls: dict[str, list[float]] = {"omnidev": [], "ffmpeg": [], "codec_only": []}
+    cpus: dict[str, list[float]] = {"omnidev": [], "ffmpeg": [], "codec_only": []}
     stats: list[dict[str, Any]] = []
     for _ in range(reps):  # interleaved, so that the machine's load hits both alike
         w, c, err = _timed(omnidev_cmd)
         walls["omnidev"].append(w)
         cpus["omnidev"].append(c)
         stats.append(json.loads(err.strip().splitlines()[-1]))
-        w, c, _ = _timed(ffmpeg_cmd)
-        walls["ffmpeg"].append(w)
-        cpus["ffmpeg"].append(c)
+        for key, cmd in (("ffmpeg", ffmpeg_cmd), ("codec_only", codec_only_cmd)):
+            w, c, _ = _timed(cmd)
+            walls[key].append(w)
+            cpus[key].append(c)
     om, ff = float(np.median(walls["omnidev"])), float(np.median(walls["ffmpeg"]))
     s = stats[int(np.argsort(walls["omnidev"])[len(stats) // 2])]
     pipe_wall = s["wall_s"]
@@ -217,10 +254,18 @@ def _case(
         "omnidev_fps": round(frames / om, 2),
         "ffmpeg_fps": round(frames / ff, 2),
         "ratio_vs_ffmpeg": round(ff / om, 3),
+        "ratio_paired": round(
+            float(np.median(np.array(walls["ffmpeg"]) / np.array(walls["omnidev"]))), 3
+        ),
         "omnidev_wall_s": [round(x, 2) for x in walls["omnidev"]],
         "ffmpeg_wall_s": [round(x, 2) for x in walls["ffmpeg"]],
         "omnidev_cpu_s": round(float(np.median(cpus["omnidev"])), 2),
         "ffmpeg_cpu_s": round(float(np.median(cpus["ffmpeg"])), 2),
+        "codec_only_fps": round(frames / float(np.median(walls["codec_only"])), 2),
+        "codec_only_cpu_s": round(float(np.median(cpus["codec_only"])), 2),
+        "ratio_ceiling": round(
+            float(np.median(walls["ffmpeg"]) / np.median(walls["codec_only"])), 3
+        ),
         "omnidev_layout": s["layout"],
         "stage_split": {
             "setup_s": s["setup_s"],
@@ -356,7 +401,12 @@ def run(quick: bool = False) -> dict[str, Any]:
     if shutil.which("ffmpeg") is None:
         raise RuntimeError("bench video needs ffmpeg (apt-get install ffmpeg)")
     frames = 60 if quick else 300
-    reps = 1 if quick else 3
+    reps = int(os.environ.get("OMNIDEV_BENCH_REPS", 1 if quick else 3))
+    codecs = os.environ.get("OMNIDEV_BENCH_CODECS", "h264,mjpeg").split(",")
+    unknown = sorted(set(codecs) - set(CODECS))
+    if unknown:
+        raise ValueError(f"OMNIDEV_BENCH_CODECS: unknown {unknown} (known: {sorted(CODECS)})")
+    linear = os.environ.get("OMNIDEV_BENCH_LINEAR", "1") != "0"
     threads = _threads()
     cache = os.environ.get("OMNIDEV_BENCH_CACHE")
     with tempfile.TemporaryDirectory(prefix="omnidev-bench-video-") as tmp:
@@ -366,26 +416,32 @@ def run(quick: bool = False) -> dict[str, Any]:
         src = _input(data, frames)
         fisheye = _fisheye(work)
         table = _pano_table(work)
+        nonsvp = _nonsvp(work)
         omnidev_bin = str(Path(sys.executable).parent / "omnidev")
         t = str(threads)
 
         result: dict[str, Any] = {
             "input": f"{frames} frames {SIZE}x{SIZE} MJPEG q3 yuvj420p",
-            "codecs": {k: v[2] for k, v in CODECS.items()},
+            "codecs": {k: CODECS[k][2] for k in codecs},
             "threads": threads,
             "reps": reps,
             "load_avg_1min_start": round(os.getloadavg()[0], 2),
         }
         cam = omnidev.load_camera(fisheye)
+        pano_maps = {
+            "pano": build_maps(omnidev.load_camera(table), parse_view(PANO)),
+            "nonsvp": build_maps(omnidev.load_camera(nonsvp), parse_view(PANO)),
+        }
         valid = {
             "eq": build_maps(cam, parse_view(EQUIRECT)).valid,
             "flat": build_maps(cam, parse_view(FLAT)).valid,
-            "pano": build_maps(omnidev.load_camera(table), parse_view(PANO)).valid,
+            **{k: m.valid for k, m in pano_maps.items()},
         }
-        xmap, ymap = _pgm_maps(table, PANO, work)
-        for codec, (ff_args, suffix_query, _) in CODECS.items():
+        pgm = {k: _pgm_maps(m, work, k) for k, m in pano_maps.items()}
+        del pano_maps
+        for codec in codecs:
+            ff_args, (suffix, query), _ = CODECS[codec]
             tag = "" if codec == "h264" else f"_{codec}"
-            suffix, query = suffix_query
 
             def om(camera: Path, view: str, out: Path, *more: str, query: str = query) -> list[str]:
                 return [
@@ -398,28 +454,39 @@ def run(quick: bool = False) -> dict[str, Any]:
                         "-filter_threads", t, "-filter_complex_threads", t, *ff_args,
                         "-threads", t, str(out)]  # fmt: skip
 
+            def ff_remap(
+                out: Path, maps: tuple[Path, Path], ff_args: tuple[str, ...] = ff_args
+            ) -> list[str]:
+                graph = "[0:v]format=yuvj444p[s];[s][1:v][2:v]remap,format=yuvj420p[o]"
+                return [
+                    "ffmpeg", "-v", "error", "-y", "-threads", t, "-i", str(src), "-i",
+                    str(maps[0]), "-i", str(maps[1]), "-filter_complex", graph, "-map", "[o]",
+                    "-filter_threads", t, "-filter_complex_threads", t, *ff_args, "-threads", t,
+                    str(out),
+                ]  # fmt: skip
+
+            def codec_only(size: str, suffix: str = suffix) -> list[str]:
+                return ff(work / f"codec_only{suffix}", "-vf", f"scale={size}:flags=neighbor")
+
             o1, f1 = work / f"eq_omnidev{suffix}", work / f"eq_ffmpeg{suffix}"
             result[f"fisheye_equirect{tag}"] = _case(
                 frames, om(fisheye, EQUIRECT, o1), ff(f1, "-vf", V360_EQUIRECT), (o1, f1),
-                valid["eq"], reps,
+                valid["eq"], reps, codec_only("2048:512"),
             )  # fmt: skip
             o2, f2 = work / f"flat_omnidev{suffix}", work / f"flat_ffmpeg{suffix}"
             result[f"fisheye_flat{tag}"] = _case(
                 frames, om(fisheye, FLAT, o2), ff(f2, "-vf", V360_FLAT), (o2, f2),
-                valid["flat"], reps,
+                valid["flat"], reps, codec_only("1280:720"),
             )  # fmt: skip
-            o3, f3 = work / f"pano_omnidev{suffix}", work / f"pano_ffmpeg{suffix}"
-            graph = "[0:v]format=yuvj444p[s];[s][1:v][2:v]remap,format=yuvj420p[o]"
-            ff_remap = [
-                "ffmpeg", "-v", "error", "-y", "-threads", t, "-i", str(src), "-i", str(xmap),
-                "-i", str(ymap), "-filter_complex", graph, "-map", "[o]", "-filter_threads", t,
-                "-filter_complex_threads", t, *ff_args, "-threads", t, str(f3),
-            ]  # fmt: skip
-            o4 = work / f"pano_linear{suffix}"
-            result[f"pano_table{tag}"] = _case(
-                frames, om(table, PANO, o3, "--interpolation", "nearest"), ff_remap, (o3, f3),
-                valid["pano"], reps, {"omnidev_linear_fps": om(table, PANO, o4)},
-            )  # fmt: skip
+            for key, camera in (("pano", table), ("nonsvp", nonsvp)):
+                o3, f3 = work / f"{key}_omnidev{suffix}", work / f"{key}_ffmpeg{suffix}"
+                o4 = work / f"{key}_linear{suffix}"
+                name = "pano_table" if key == "pano" else "nonsvp"
+                result[f"{name}{tag}"] = _case(
+                    frames, om(camera, PANO, o3, "--interpolation", "nearest"),
+                    ff_remap(f3, pgm[key]), (o3, f3), valid[key], reps, codec_only("2048:512"),
+                    {"omnidev_linear_fps": om(camera, PANO, o4)} if linear else None,
+                )  # fmt: skip
         result["load_avg_1min_end"] = round(os.getloadavg()[0], 2)
         result.update(_api_vs_bare(table, quick))
         result["libraries"] = _libraries(src, 60 if quick else 150, threads)

@@ -28,6 +28,7 @@ SUBCOMMANDS = (
     "mouse_cmd",
     "laser_cmd",
     "nonsvp_cmd",
+    "eval_cmd",
     "batch_cmd",
 )
 
