@@ -92,9 +92,7 @@ class VideoIndex:
     split: str = ""
 
 
-def plan_ranges(
-    pts: Sequence[int], keyframe_pts: Sequence[int], target: int
-) -> list[FrameRange]:
+def plan_ranges(pts: Sequence[int], keyframe_pts: Sequence[int], target: int) -> list[FrameRange]:
     """Cut frames with presentation timestamps ``pts`` into ranges starting at keyframes.
 
     A range ends at the first keyframe at least ``target`` frames after its
@@ -198,9 +196,7 @@ def index_video(path: Path, target: int) -> VideoIndex:
     elif len(set(pts)) != len(pts):
         split = "two packets carry the same timestamp"
     ranges = (
-        plan_ranges(pts, keys, target)
-        if not split
-        else [FrameRange(0, 0, len(pts), None, None)]
+        plan_ranges(pts, keys, target) if not split else [FrameRange(0, 0, len(pts), None, None)]
     )
     return VideoIndex(
         len(pts), size, fps, native, len(keys), tuple(ranges), path.stat().st_size, split
@@ -403,10 +399,11 @@ def _segment_packets(seg: Segment, rate: Fraction) -> list[tuple[int, bool]]:
         return [(i, k) for i, (_, k) in enumerate(raw)]
     if any(t is None for t, _ in raw):
         raise OutputError(f"{seg.path}: some packets carry no timestamp; cannot join it")
-    first = min(int(t) for t, _ in raw)
+    stamps = [int(t) for t, _ in raw if t is not None]
+    first = min(stamps)
     out = []
-    for t, k in raw:
-        f = _frames_of(int(t) - first, tb, rate)
+    for t, (_, k) in zip(stamps, raw, strict=True):
+        f = _frames_of(t - first, tb, rate)
         assert f is not None
         out.append((f, bool(k)))
     return out

@@ -115,7 +115,9 @@ def _expand(pattern: str, base: Path) -> list[Path]:
     if not p.is_absolute():
         p = base / p
     if glob.has_magic(str(p)):
-        return sorted(Path(f).resolve() for f in glob.glob(str(p), recursive=True) if Path(f).is_file())
+        return sorted(
+            Path(f).resolve() for f in glob.glob(str(p), recursive=True) if Path(f).is_file()
+        )
     return [p.resolve()]
 
 
@@ -228,7 +230,9 @@ def _read_manifest(
         cam_text = str(row.get("camera") or "").strip()
         row_camera = (base / os.path.expanduser(cam_text)).resolve() if cam_text else camera
         if row_camera is None or not row_views:
-            bad.append(BadInput(label, "no camera or no views (give them in the row or the command)"))
+            bad.append(
+                BadInput(label, "no camera or no views (give them in the row or the command)")
+            )
             continue
         files = _expand(name, base)
         if not files:
@@ -272,7 +276,12 @@ def common_root(inputs: Sequence[BatchInput]) -> Path:
 
 
 def output_path(
-    out_dir: Path, root: Path, item: BatchInput, view: NamedView, video_suffix: str, image_suffix: str
+    out_dir: Path,
+    root: Path,
+    item: BatchInput,
+    view: NamedView,
+    video_suffix: str,
+    image_suffix: str,
 ) -> Path:
     """Where ``view`` of ``item`` goes: ``out_dir / view.name / relative path`` with its suffix."""
     rel = item.path.relative_to(root)
@@ -283,7 +292,7 @@ def output_path(
 def find_collisions(
     out_dir: Path, root: Path, inputs: Sequence[BatchInput], video_suffix: str, image_suffix: str
 ) -> list[BadInput]:
-    """Inputs whose output would overwrite another input's (``a.mp4`` and ``a.mkv`` -> ``a.mp4``)."""
+    """Inputs whose output would overwrite another's (``a.mp4`` and ``a.mkv`` -> ``a.mp4``)."""
     owner: dict[Path, Path] = {}
     bad: list[BadInput] = []
     for item in inputs:
@@ -291,6 +300,8 @@ def find_collisions(
             p = output_path(out_dir, root, item, v, video_suffix, image_suffix)
             first = owner.setdefault(p, item.path)
             if first != item.path:
-                bad.append(BadInput(str(item.path), f"its output {p} is also {first}'s; rename one"))
+                bad.append(
+                    BadInput(str(item.path), f"its output {p} is also {first}'s; rename one")
+                )
                 break
     return bad

@@ -4,12 +4,14 @@
 as work finishes (flushed at once, synced to disk at most once a second and
 at the end):
 
-| ``kind`` | written when | fields |
-|---|---|---|
-| ``index`` | a video is indexed | ``unit``, ``input``, ``index`` (frames, size, fps, ranges) |
-| ``range`` | a range's segments are in place | ``unit``, ``range``, ``frames``, ``segments`` (path, bytes) |
-| ``done`` | an input's outputs are in place | ``unit``, ``input``, ``outputs``, ``frames`` |
-| ``failed`` | an input failed (informative; a rerun tries it again) | ``unit``, ``input``, ``error`` |
+- ``index``, when a video is indexed: ``unit``, ``input``, ``index`` (frames,
+  size, fps, ranges);
+- ``range``, when a range's segments are in place: ``unit``, ``range``,
+  ``frames``, ``segments`` (path, bytes);
+- ``done``, when an input's outputs are in place: ``unit``, ``input``,
+  ``outputs``, ``frames``;
+- ``failed``, when an input failed (informative; a rerun tries it again):
+  ``unit``, ``input``, ``error``.
 
 A *unit* is one input with one camera, set of views and output settings; its
 key (:func:`unit_key`) is a hash of the input file's path, size and
@@ -108,7 +110,7 @@ class Journal:
 
     def __enter__(self) -> Journal:
         self.dir.mkdir(parents=True, exist_ok=True)
-        self._lock = open(self.dir / "lock", "w")  # noqa: SIM115 - held until close
+        self._lock = open(self.dir / "lock", "w")
         try:
             fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -117,7 +119,7 @@ class Journal:
             raise OmnidevError(
                 f"{self.dir.parent}: another omnidev batch job is using this folder"
             ) from None
-        self._file = open(self.path, "a", encoding="utf-8")  # noqa: SIM115
+        self._file = open(self.path, "a", encoding="utf-8")
         return self
 
     def __exit__(

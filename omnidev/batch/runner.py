@@ -261,7 +261,7 @@ class _Job:
                 try:
                     cam = (load_camera(item.camera, options), file_hash(item.camera))
                 except OmnidevError as exc:
-                    cam = f"calibration {item.camera}: {_one_line(exc)}"
+                    cam = f"calibration {item.camera}: {_one_line(str(exc))}"
                 cameras[item.camera] = cam
             if isinstance(cam, str):
                 self._fail(u, cam)
@@ -404,7 +404,7 @@ class _Job:
         from distributed import as_completed
 
         inflight: dict[Any, _Work] = {}
-        ac = as_completed()
+        ac = as_completed()  # type: ignore[no-untyped-call]
         try:
             while queue or inflight:
                 while queue and len(inflight) < self._window():
@@ -413,7 +413,7 @@ class _Job:
                         continue
                     fut = self._submit(work)
                     inflight[fut] = work
-                    ac.add(fut)
+                    ac.add(fut)  # type: ignore[no-untyped-call]
                 if not inflight:
                     continue
                 fut = next(ac)
@@ -464,9 +464,7 @@ class _Job:
                 key=f"omnidev-range-{tag}",
             )  # fmt: skip
         if w.kind == "join":
-            return self.client.submit(
-                _join_all, self._join_jobs(u), key=f"omnidev-join-{tag}"
-            )
+            return self.client.submit(_join_all, self._join_jobs(u), key=f"omnidev-join-{tag}")
         job = tasks.ImagesJob(
             tuple(str(self.units[i].item.path) for i in w.units),  # type: ignore[union-attr]
             tuple(tuple(str(p) for p in self.units[i].outputs) for i in w.units),
@@ -528,9 +526,7 @@ class _Job:
         name = u.report.input
         self.say(message if name in message else f"{name}: {message}")
         if u.key:
-            self.journal.record(
-                {"kind": "failed", "unit": u.key, "input": name, "error": message}
-            )
+            self.journal.record({"kind": "failed", "unit": u.key, "input": name, "error": message})
 
     def _finished(self, fut: Any, w: _Work) -> list[_Work]:
         from distributed.scheduler import KilledWorker
@@ -692,14 +688,14 @@ def start_local_cluster(workers: int, threads_per_worker: int = 1) -> tuple[Any,
 
     from distributed import Client, LocalCluster
 
-    cluster = LocalCluster(
+    cluster = LocalCluster(  # type: ignore[no-untyped-call]
         n_workers=workers,
         threads_per_worker=threads_per_worker,
         processes=True,
         dashboard_address=None,
         silence_logs=logging.ERROR,
     )
-    return cluster, Client(cluster)
+    return cluster, Client(cluster)  # type: ignore[no-untyped-call]
 
 
 def connect(address: str | None, timeout_s: float = 30.0) -> Any:
@@ -707,7 +703,9 @@ def connect(address: str | None, timeout_s: float = 30.0) -> Any:
     from distributed import Client
 
     try:
-        return Client(address, timeout=timeout_s) if address else Client(timeout=timeout_s)
+        if address:
+            return Client(address, timeout=timeout_s)  # type: ignore[no-untyped-call]
+        return Client(timeout=timeout_s)  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError) as exc:
         where = address or "the Dask config's scheduler-address"
         raise OmnidevError(f"cannot reach the Dask scheduler at {where}: {exc}") from None

@@ -25,14 +25,20 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import cast
 
 import cv2
 import numpy as np
 
-from omnidev.batch.avrange import FrameRange, ReadStats, Segment, VideoIndex, index_video
+from omnidev.batch.avrange import (
+    FrameRange,
+    ReadStats,
+    Segment,
+    VideoIndex,
+    index_video,
+    read_range,
+)
 from omnidev.batch.avrange import join_segments as _join
-from omnidev.batch.avrange import read_range
 from omnidev.camera import Maps
 from omnidev.errors import OmnidevError
 from omnidev.frame import Frame
@@ -215,7 +221,7 @@ def range_task(job: RangeJob, maps: Sequence[Maps]) -> RangeResult | Failure:
                 )
                 out = FileOutput(Path(seg), spec, dict(job.encode))
                 stack.enter_context(out)
-                outputs.append(out)
+                outputs.append(cast(Output, out))
             stats = run_pipeline(frames, job.layout, remaps, outputs)
         if stats.frames != job.frames.frames:
             return Failure(
@@ -271,16 +277,15 @@ def images_task(job: ImagesJob, maps: Sequence[Maps]) -> ImagesResult:
                 c1 = time.thread_time()
                 Path(out_path).parent.mkdir(parents=True, exist_ok=True)
                 spec = OutputSpec((m.shape[1], m.shape[0]), 25.0, ("bgr",), True)
-                with FileOutput(Path(out_path), spec) as out:
+                out = FileOutput(Path(out_path), spec)
+                with out:
                     out.write(Frame(view, frame.timestamp_ns, 0))
                 cpu["remap"] += c1 - c0
                 cpu["write"] += time.thread_time() - c1
             errors.append(None)
         except OmnidevError as exc:
             errors.append(str(exc))
-    return ImagesResult(
-        tuple(errors), time.perf_counter() - t0, cpu, _worker_name(), os.getpid()
-    )
+    return ImagesResult(tuple(errors), time.perf_counter() - t0, cpu, _worker_name(), os.getpid())
 
 
 def join_task(job: JoinJob) -> JoinResult | Failure:

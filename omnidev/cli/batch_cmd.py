@@ -52,7 +52,9 @@ def register(sub: Any) -> None:
         help="video or image file, glob ('archive/**/*.mp4', quoted), or manifest (.csv or "
         ".jsonl rows: input, camera, views)",
     )
-    u.add_argument("--camera", type=Path, help="calibration file (rows of a manifest may name their own)")
+    u.add_argument(
+        "--camera", type=Path, help="calibration file (rows of a manifest may name their own)"
+    )
     u.add_argument(
         "--view",
         action="append",
@@ -161,14 +163,12 @@ def run(args: argparse.Namespace) -> int:
             stack.callback(cluster.close)
         stack.callback(client.close)
         try:
-            report = run_job(
-                inputs, bad, args.out, settings, client, progress=not args.no_progress
-            )
+            report = run_job(inputs, bad, args.out, settings, client, progress=not args.no_progress)
         except KeyboardInterrupt as exc:
-            report = getattr(exc, "report", None)
-            if report is not None:
-                _print(report, args.json)
-            done = sum(u.ranges_run for u in report.inputs) if report else 0
+            partial: JobReport | None = getattr(exc, "report", None)
+            if partial is not None:
+                _print(partial, args.json)
+            done = sum(u.ranges_run for u in partial.inputs) if partial else 0
             print(
                 f"omnidev batch: interrupted; {done} ranges finished now are kept: run the "
                 "same command to finish",
