@@ -27,6 +27,7 @@ SUBCOMMANDS = (
     "mouse_cmd",
     "laser_cmd",
     "nonsvp_cmd",
+    "eval_cmd",
 )
 
 
