@@ -60,7 +60,9 @@ from omnidev.laser.spot import COLOURS, LaserSpot
 
 _CHANNEL = {"red": 2, "green": 1}
 _BLOCK = 16  # full-resolution px: the busy map's block size
-_NEW_MARGIN = 30  # grey levels below ``saturated`` the model must be for a pixel to be new
+_NEW_MARGIN = 30
+_POPCOUNT = np.array([bin(i).count("1") for i in range(256)], np.uint8)
+_LIN = (np.arange(256) / 255.0) ** 2.2  # grey level -> linear light (gamma 2.2)  # grey levels below ``saturated`` the model must be for a pixel to be new
 
 
 class ColourSpotDetector:
@@ -80,6 +82,8 @@ class ColourSpotDetector:
         colour_ratio: with the model: the laser channel's rise over the strongest other
             channel's (fractions of their room below 255), the colour test on content
             of the laser's own colour, where the ring test cannot see the spot.
+        fringe: largest fraction of the blob where the other channels clip too (a
+            white-cored spot's clipped laser channel reaches beyond its white core).
         min_new: fraction of the blob's pixels that must be new.
         min_area, max_area: blob size limits, full-resolution px.
         max_elongation: largest principal-axis ratio (motion streaks).
@@ -88,6 +92,8 @@ class ColourSpotDetector:
         busy_frames: frames a region stays busy.
         track_px: how far (px) from the previous spot a blob may be where the model
             cannot tell.
+        busy_gain: in busy regions, the ring gain (grey levels) a blob far from the
+            previous spot needs.
         bands: the model is refreshed one row band of ``bands`` per frame.
     """
 
@@ -101,7 +107,8 @@ class ColourSpotDetector:
         soft: int = 40,
         rise: int = 30,
         halo: float = 20.0,
-        colour_ratio: float = 1.5,
+        colour_ratio: float = 1.15,
+        fringe: float = 0.6,
         min_new: float = 0.1,
         min_area: int = 2,
         max_area: int = 2500,
@@ -110,6 +117,7 @@ class ColourSpotDetector:
         change_fraction: float = 0.2,
         busy_frames: int = 45,
         track_px: float = 80.0,
+        busy_gain: float = 100,
         bands: int = 8,
     ) -> None:
         if colour not in COLOURS:
@@ -138,6 +146,7 @@ class ColourSpotDetector:
         self.rise = rise
         self.halo = halo
         self.colour_ratio = colour_ratio
+        self.fringe = fringe
         self.min_new = min_new
         self.min_area = min_area
         self.max_area = max_area
@@ -146,16 +155,19 @@ class ColourSpotDetector:
         self.change_fraction = change_fraction
         self.busy_frames = busy_frames
         self.track_px = track_px
+        self.busy_gain = busy_gain
         self.bands = bands
         self.half = math.ceil(math.sqrt(max_area / math.pi)) + 12  # window half size, px
         self._k3 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
         self._k7 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
         self._k11 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))
         self._k19 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (19, 19))
+        self._k25 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (25, 25))
         self.background: NDArray[np.uint8] | None = None
         self.slide_changes = 0  # frames judged a slide change (for figures)
         self.refused = 0  # frames refused as ambiguous (for figures)
         self._planes: dict[int, NDArray[np.uint8]] = {}  # laser channels of the model
+        self._low: dict[int, NDArray[np.uint8]] = {}  # where a clipped pixel would be new
         self._frame = 0
         self._mask8: NDArray[np.uint8] | None = None
         self._mask_lo: NDArray[np.uint8] | None = None
@@ -213,13 +225,7 @@ class ColourSpotDetector:
         for c in self.channels:
             lc = cv2.extractChannel(image, c)
             clipped = cv2.threshold(lc, self.saturated - 1, 255, cv2.THRESH_BINARY)[1]
-            was = cv2.threshold(
-                self._planes[c], self.saturated - _NEW_MARGIN - 1, 255, cv2.THRESH_BINARY_INV
-            )[1]
-            new = cv2.bitwise_and(clipped, was)
-            if self._mask8 is not None:
-                new = cv2.bitwise_and(new, self._mask8)
-            cands.append((c, new))
+            cands.append((c, cv2.bitwise_and(clipped, self._low[c])))
         spot = self._best(image, cands, bg, near_only=False)
         self._update(image, spot)
         return spot
@@ -251,12 +257,28 @@ class ColourSpotDetector:
     def _set_model(self, bg: NDArray[np.uint8]) -> None:
         self.background = bg
         self._planes = {c: np.ascontiguousarray(bg[:, :, c]) for c in self.channels}
+        self._low = {c: self._low_of(p, slice(None), slice(None)) for c, p in self._planes.items()}
+
+    def _low_of(self, plane: NDArray[np.uint8], rows: slice, cols: slice) -> NDArray[np.uint8]:
+        """255 where the model's laser channel is clearly below clipping (a pixel that
+        clips there now is new) and inside the screen, else 0."""
+        low = cv2.threshold(
+            np.ascontiguousarray(plane[rows, cols]),
+            self.saturated - _NEW_MARGIN - 1,
+            255,
+            cv2.THRESH_BINARY_INV,
+        )[1]
+        if self._mask8 is not None:
+            low = cv2.bitwise_and(low, np.ascontiguousarray(self._mask8[rows, cols]))
+        out: NDArray[np.uint8] = low
+        return out
 
     def _model_changed(self, rows: slice, cols: slice = slice(None)) -> None:
         bg = self.background
         assert bg is not None
         for c, plane in self._planes.items():
             plane[rows, cols] = bg[rows, cols, c]
+            self._low[c][rows, cols] = self._low_of(plane, rows, cols)
 
     def _mark_busy(self, dec: NDArray[np.uint8]) -> None:
         """Blocks where much of the content got darker (>= 10 % of the samples by
@@ -275,11 +297,7 @@ class ColourSpotDetector:
             hit = cv2.copyMakeBorder(hit, 0, max(0, pad_h), 0, max(0, pad_w), cv2.BORDER_CONSTANT)
         frac = hit[: bh * kb, : bw * kb].reshape(bh, kb, bw, kb).mean(axis=(1, 3))
         self._history[frac >= 0.1] |= 1
-        counts = np.zeros(self._history.shape, np.uint8)
-        hist = self._history.copy()
-        while hist.any():
-            counts += (hist & 1).astype(np.uint8)
-            hist >>= 1
+        counts = _POPCOUNT[self._history & 0xFF] + _POPCOUNT[self._history >> 8]
         busy = cv2.dilate((counts >= 2).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         self._busy[busy] = self._frame + self.busy_frames
 
@@ -297,12 +315,16 @@ class ColourSpotDetector:
         hit = cv2.threshold(dec, self.rise - 1, 255, 0)[1]
         if not cv2.countNonZero(hit):
             return
+        k = self.step
         h, w = image.shape[:2]
-        full = cv2.resize(hit, (w, h), interpolation=cv2.INTER_NEAREST) if self.step > 1 else hit
-        grown = cv2.dilate(full, np.ones((2 * self.step + 1,) * 2, np.uint8)).view(bool)
-        bg[grown] = image[grown]
-        for c, plane in self._planes.items():
-            plane[grown] = image[:, :, c][grown]
+        x, y, bw, bh = cv2.boundingRect(hit)
+        r0, c0 = max(0, (y - 1) * k), max(0, (x - 1) * k)
+        r1, c1 = min(h, (y + bh + 1) * k), min(w, (x + bw + 1) * k)
+        sub = hit[r0 // k : -(-r1 // k), c0 // k : -(-c1 // k)]
+        full = np.repeat(np.repeat(sub, k, axis=0), k, axis=1)[: r1 - r0, : c1 - c0]
+        grown = cv2.dilate(full, np.ones((2 * k + 1,) * 2, np.uint8)).view(bool)
+        np.copyto(bg[r0:r1, c0:c1], image[r0:r1, c0:c1], where=grown[..., None])
+        self._model_changed(slice(r0, r1), slice(c0, c1))
 
     def _restart(self, image: NDArray[np.uint8]) -> LaserSpot | None:
         """A slide change: look for the spot near the previous one; the model restarts
@@ -353,8 +375,8 @@ class ColourSpotDetector:
             v0, v1, u0, u1 = self._window(spot.u, spot.v, h, w)
             if v0 < b1 and b0 < v1:
                 keep[max(v0, b0) - b0 : min(v1, b1) - b0, u0:u1] = 1
-        if keep.any():
-            keep = cv2.dilate(keep, self._k7)
+        if keep.any():  # and the halo around it, which would leave darker pixels behind
+            keep = cv2.dilate(keep, self._k25)
         saved = bg[b0:b1].copy()
         cv2.addWeighted(image[b0:b1], 0.5, bg[b0:b1], 0.5, 0.0, dst=bg[b0:b1])
         if keep.any():
@@ -392,13 +414,18 @@ class ColourSpotDetector:
                 cand[v0:v1, u0:u1] = cv2.max(cand[v0:v1, u0:u1], near)
             elif near_only:
                 continue
-            pts = cv2.findNonZero(cand)
-            if pts is None:
+            if not cv2.countNonZero(cand):
                 continue
-            if len(pts) > 20 * self.max_area:
-                pts = pts[:: len(pts) // (20 * self.max_area) + 1]
-            for x, y in pts.reshape(-1, 2):
-                seeds.append((c, int(x), int(y)))
+            x0, y0, bw, bh = cv2.boundingRect(cand)
+            n, lab, st, _ = cv2.connectedComponentsWithStats(
+                np.ascontiguousarray(cand[y0 : y0 + bh, x0 : x0 + bw]), connectivity=8
+            )
+            order = np.argsort(-st[1:, cv2.CC_STAT_AREA]) + 1
+            for j in order[:64]:  # a pixel of each group, the largest groups first
+                gx, gy = st[j, cv2.CC_STAT_LEFT], st[j, cv2.CC_STAT_TOP]
+                row = lab[gy, gx : gx + st[j, cv2.CC_STAT_WIDTH]]
+                gx += int(np.argmax(row == j))
+                seeds.append((c, int(x0 + gx), int(y0 + gy)))
         found: list[LaserSpot] = []
         measured = np.zeros((h, w), bool)
         tried = 0
@@ -454,21 +481,19 @@ class ColourSpotDetector:
             return None, ibox
         busy = bg is not None and self._is_busy(su, sv)
         if busy and not near:
-            return None, ibox
+            # content moves here: only a blob far more of the laser's colour than its
+            # surroundings (its ring) starts a track
+            g = self._ring_gain(win, sel, c)
+            if g is None or g < self.busy_gain:
+                return None, ibox
         if bg is not None:
             # new: enough of the blob was not clipped in the content model
             was = self._planes[c][v0:v1, u0:u1][sel]
             if np.count_nonzero(was < self.saturated - _NEW_MARGIN) < self.min_new * was.size:
                 return None, ibox
-        gain = self._ring_gain(win, sel, c)
-        if gain is None and (bg is None or busy):
-            return None, ibox
+        gain = self._colour(win, None if bg is None or busy else bg[v0:v1, u0:u1], sel, c)
         if gain is None:
-            assert bg is not None
-            ratio = self._rise_ratio(win, bg[v0:v1, u0:u1], sel, c)
-            if ratio < self.colour_ratio:
-                return None, ibox
-            gain = self.halo * min(ratio / self.colour_ratio, 2.0)
+            return None, ibox
         soft = np.clip((lc.astype(np.float64) - (self.saturated - self.soft)) / self.soft, 0, 1)
         region = cv2.dilate(sel.view(np.uint8), self._k3).view(bool)
         wgt = soft[region]
@@ -516,19 +541,47 @@ class ColourSpotDetector:
                 return None, box
         return sel, box
 
+    def _colour(
+        self,
+        win: NDArray[np.uint8],
+        ref: NDArray[np.uint8] | None,
+        sel: NDArray[np.bool_],
+        c: int,
+    ) -> float | None:
+        """Whether blob ``sel`` is of the laser's colour, by any of: its fringe (the other
+        channels clip over at most ``fringe`` of it: a white or yellow patch clips them
+        all over), its ring (:meth:`_ring_gain`), or, with the model ``ref``, the halo's
+        rise (:meth:`_rise_ratio`). Returns a score (grey levels) or None."""
+        a, b = (o for o in (0, 1, 2) if o != c)
+        other_clipped = np.maximum(win[:, :, a], win[:, :, b])[sel] >= self.saturated
+        fringe = float(np.mean(other_clipped))
+        gain = self._ring_gain(win, sel, c)
+        if gain is not None:
+            return gain
+        if fringe <= self.fringe:
+            return self.halo * (1.0 + (self.fringe - fringe))
+        if ref is not None and self._rise_ratio(win, ref, sel, c) >= self.colour_ratio:
+            return self.halo
+        return None
+
     def _rise_ratio(
         self, win: NDArray[np.uint8], ref: NDArray[np.uint8], sel: NDArray[np.bool_], c: int
     ) -> float:
-        """Over the blob and 3 px around it: the laser channel's rise over the model
-        against the strongest other channel's, each as a fraction of the room its
-        channel had below 255 (a spot on content of its own colour has little room)."""
+        """In the halo (3 px around the blob, where the laser channel does not clip): the
+        laser channel's rise over the model against the strongest other channel's, in
+        linear light (gamma 2.2 assumed). A laser adds ``crosstalk`` (< 1/2) as much to
+        the others; white or yellow content appearing adds about as much."""
         grown = cv2.dilate(sel.view(np.uint8), self._k7).view(bool)
-        d = win[grown].astype(np.float64) - ref[grown]
-        rel = d.clip(0.0) / (256.0 - ref[grown].astype(np.float64))
+        halo = grown & ~sel & (win[:, :, c] < self.saturated)
+        if np.count_nonzero(halo) < 3:
+            return 0.0
+        now = _LIN[win[halo]]
+        before = _LIN[ref[halo]]
+        d = (now - before).clip(0.0)
         a, b = (o for o in (0, 1, 2) if o != c)
-        rise_c = float(rel[:, c].sum())
-        rise_o = float(np.maximum(rel[:, a], rel[:, b]).sum())
-        return rise_c / max(rise_o, 1e-6) if rise_c > 0 else 0.0
+        rise_c = float(d[:, c].sum())
+        rise_o = float(np.maximum(d[:, a], d[:, b]).sum())
+        return rise_c / max(rise_o, 1e-4) if rise_c > 0.05 else 0.0
 
     def _ring_gain(self, win: NDArray[np.uint8], sel: NDArray[np.bool_], c: int) -> float | None:
         """How much more of the laser's colour the ring of pixels next to the blob is (the
