@@ -3,7 +3,7 @@
 Runs the daemon's pipeline (source -> laser-pointer tracker -> One Euro filter
 -> sink) on any source into any sink, until a file source ends or Ctrl-C /
 SIGTERM; a spot that vanishes and every exit release the pointer buttons.
-``--method`` picks the spot detector (``colour``, the default, or ``white-core``)
+``--method`` picks the spot detector (``white-core``, the default, or ``colour``)
 and ``--detector-option KEY=VALUE`` sets its limits, as the daemon config's
 [tracker.options] table does (docs/laser-pointer.md lists them). The One Euro
 filter uses the laser's defaults (restarted after 0.1 s without a spot).
@@ -38,8 +38,8 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--method",
         choices=("colour", "white-core"),
-        default="colour",
-        help="spot detector: colour (no white core needed, default) or white-core",
+        default="white-core",
+        help="spot detector: white-core (default) or colour (no white core needed)",
     )
     p.add_argument(
         "--detector-option",

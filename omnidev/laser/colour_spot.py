@@ -51,6 +51,7 @@ Coordinates: image pixels, u right, v down, the centre of the top-left pixel at
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import cv2
 import numpy as np
@@ -62,7 +63,8 @@ _CHANNEL = {"red": 2, "green": 1}
 _BLOCK = 16  # full-resolution px: the busy map's block size
 _NEW_MARGIN = 30
 _POPCOUNT = np.array([bin(i).count("1") for i in range(256)], np.uint8)
-_LIN = (np.arange(256) / 255.0) ** 2.2  # grey level -> linear light (gamma 2.2)  # grey levels below ``saturated`` the model must be for a pixel to be new
+# grey levels below ``saturated`` the model must be for a pixel to be new: _NEW_MARGIN
+_LIN = (np.arange(256) / 255.0) ** 2.2  # grey level -> linear light (gamma 2.2)
 
 
 class ColourSpotDetector:
@@ -117,7 +119,7 @@ class ColourSpotDetector:
         change_fraction: float = 0.2,
         busy_frames: int = 45,
         track_px: float = 80.0,
-        busy_gain: float = 100,
+        busy_gain: float = 60.0,
         bands: int = 8,
     ) -> None:
         if colour not in COLOURS:
@@ -204,7 +206,7 @@ class ColourSpotDetector:
         k = self.step
         lo, bg_lo = image[::k, ::k], bg[::k, ::k]
         changed = 0
-        dec_any: NDArray[np.uint8] | None = None
+        dec_any: NDArray[Any] | None = None
         for c in self.channels:
             lc, bc = np.ascontiguousarray(lo[:, :, c]), np.ascontiguousarray(bg_lo[:, :, c])
             o, bo = self._others(lo, c), self._others(bg_lo, c)
@@ -214,7 +216,7 @@ class ColourSpotDetector:
                 ch = cv2.bitwise_and(ch, self._mask_lo)
                 dec = cv2.bitwise_and(dec, self._mask_lo)
             changed = max(changed, cv2.countNonZero(cv2.threshold(ch, self.rise - 1, 255, 0)[1]))
-            dec_any = dec if dec_any is None else cv2.max(dec_any, dec)
+            dec_any = dec if dec_any is None else np.asarray(cv2.max(dec_any, dec), np.uint8)
         assert dec_any is not None
         if changed > self.change_fraction * self._mask_count:
             self.slide_changes += 1
@@ -223,7 +225,7 @@ class ColourSpotDetector:
         self._fix_darker(image, dec_any)
         cands = []
         for c in self.channels:
-            lc = cv2.extractChannel(image, c)
+            lc = np.asarray(cv2.extractChannel(image, c), np.uint8)
             clipped = cv2.threshold(lc, self.saturated - 1, 255, cv2.THRESH_BINARY)[1]
             cands.append((c, cv2.bitwise_and(clipped, self._low[c])))
         spot = self._best(image, cands, bg, near_only=False)
@@ -233,10 +235,8 @@ class ColourSpotDetector:
     @staticmethod
     def _others(img: NDArray[np.uint8], c: int) -> NDArray[np.uint8]:
         a, b = (o for o in (0, 1, 2) if o != c)
-        out: NDArray[np.uint8] = cv2.max(
-            np.ascontiguousarray(img[:, :, a]), np.ascontiguousarray(img[:, :, b])
-        )
-        return out
+        out = cv2.max(np.ascontiguousarray(img[:, :, a]), np.ascontiguousarray(img[:, :, b]))
+        return np.asarray(out, np.uint8)
 
     # -- the model -------------------------------------------------------------------
 
@@ -270,7 +270,7 @@ class ColourSpotDetector:
         )[1]
         if self._mask8 is not None:
             low = cv2.bitwise_and(low, np.ascontiguousarray(self._mask8[rows, cols]))
-        out: NDArray[np.uint8] = low
+        out: NDArray[np.uint8] = np.asarray(low, np.uint8)
         return out
 
     def _model_changed(self, rows: slice, cols: slice = slice(None)) -> None:
@@ -284,7 +284,7 @@ class ColourSpotDetector:
         """Blocks where much of the content got darker (>= 10 % of the samples by
         ``rise``) in two of the last 16 frames are busy for ``busy_frames`` frames,
         with their neighbours."""
-        self._history = (self._history << 1) & 0xFFFF
+        self._history = np.asarray((self._history << 1) & 0xFFFF, np.uint16)
         if self.busy_frames == 0:
             return
         hit = cv2.threshold(dec, self.rise - 1, 1, 0)[1]
@@ -394,7 +394,7 @@ class ColourSpotDetector:
     def _best(
         self,
         image: NDArray[np.uint8],
-        cands: list[tuple[int, NDArray[np.uint8]]],
+        cands: list[tuple[int, NDArray[Any]]],
         bg: NDArray[np.uint8] | None,
         *,
         near_only: bool,
@@ -417,7 +417,7 @@ class ColourSpotDetector:
             if not cv2.countNonZero(cand):
                 continue
             x0, y0, bw, bh = cv2.boundingRect(cand)
-            n, lab, st, _ = cv2.connectedComponentsWithStats(
+            _, lab, st, _ = cv2.connectedComponentsWithStats(
                 np.ascontiguousarray(cand[y0 : y0 + bh, x0 : x0 + bw]), connectivity=8
             )
             order = np.argsort(-st[1:, cv2.CC_STAT_AREA]) + 1

@@ -44,10 +44,28 @@ _SATURATED = {  # BGR display values
 }
 _WHITE = (255, 255, 255)
 _LASER_BGR = {"red": (0, 0, 255), "green": (0, 255, 0)}
-_WORDS = (
-    "laser pointer screen camera results method pixel error slide frame window "
-    "detection spot colour channel exposure bloom compression calibration border"
-).split()
+_WORDS = [
+    "laser",
+    "pointer",
+    "screen",
+    "camera",
+    "results",
+    "method",
+    "pixel",
+    "error",
+    "slide",
+    "frame",
+    "window",
+    "detection",
+    "spot",
+    "colour",
+    "channel",
+    "exposure",
+    "bloom",
+    "compression",
+    "calibration",
+    "border",
+]
 _FONTS = (cv2.FONT_HERSHEY_SIMPLEX, cv2.FONT_HERSHEY_DUPLEX, cv2.FONT_HERSHEY_TRIPLEX)
 
 
@@ -200,7 +218,7 @@ class LaserSlide:
                     rng.uniform(0, 6.3),
                     float(np.exp(rng.uniform(math.log(2), math.log(30)))),
                     colour,
-                )  # fmt: skip
+                )
             )
 
     def _setup_drifter(self, rng: np.random.Generator) -> None:

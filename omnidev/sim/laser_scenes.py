@@ -34,10 +34,11 @@ position in screen and image pixels (the mean of its path over the exposure of
 the row it lies on: the centroid of its light), whether it is visible at all
 (it raises the camera's laser channel by >= 25 grey levels within its clipped
 radius of its centre, judged on the radiance with and without it: a spot on
-content that already clips that channel is not), and the tolerance of the issue 12 acceptance in screen px of
-a 1920x1080 screen: 1.5, or the screen length of 0.5 camera px where that is
-larger. Errors are measured in the same units (x scaled by 1920 / W, y by
-1080 / H of the scene's screen), as ``omnidev eval screen`` does.
+content that already clips that channel is not), and the tolerance of the issue
+12 acceptance in screen px of a 1920x1080 screen: 1.5, or the screen length of
+0.5 camera px where that is larger. Errors are measured in the same units (x
+scaled by 1920 / W, y by 1080 / H of the scene's screen), as ``omnidev eval
+screen`` does.
 
 Frames: image pixels (u, v) and screen pixels (x, y) with the centre of the
 top-left pixel at (0, 0) (docs/conventions.md).
@@ -107,8 +108,12 @@ def screen_per_camera_px(scene: ScreenScene, uv: FloatArray) -> FloatArray:
     the square root of the local area scale."""
     uv = np.asarray(uv, float).reshape(-1, 2)
     d = 0.5
-    a = scene.image_to_screen(uv + [d, 0]) - scene.image_to_screen(uv - [d, 0])
-    b = scene.image_to_screen(uv + [0, d]) - scene.image_to_screen(uv - [0, d])
+    a = scene.image_to_screen(uv + np.array([d, 0.0])) - scene.image_to_screen(
+        uv - np.array([d, 0.0])
+    )
+    b = scene.image_to_screen(uv + np.array([0.0, d])) - scene.image_to_screen(
+        uv - np.array([0.0, d])
+    )
     out: FloatArray = np.sqrt(np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]))
     return out
 
@@ -132,13 +137,10 @@ def draw_laser(seed: int, scene: ScreenScene, *, frames: int = 75) -> LaserParam
     colour = COLOURS[int(rng.integers(2))]
     look = LOOKS[int(rng.integers(3))]
     power = _loguniform(rng, 2.0, 60.0)
-    if look == "white-core":
-        others = _loguniform(rng, 1.3, 8.0)
-    else:
-        others = float(rng.uniform(0.12, 0.75))
+    # the other channels' peak over clipping: white-core spots clip them too
+    others = _loguniform(rng, 1.3, 8.0) if look == "white-core" else float(rng.uniform(0.12, 0.75))
     crosstalk = min(0.5, others / power)
     spot_px = _loguniform(rng, 2.0, 20.0)
-    W, H = scene.size
     centre = scene.screen_to_image(np.array([[scene.screen_px[0] / 2, scene.screen_px[1] / 2]]))
     scale = float(screen_per_camera_px(scene, centre)[0])
     sigma = spot_px * scale / (2.0 * math.sqrt(2.0 * math.log(power)))
@@ -403,7 +405,8 @@ class LaserScene:
         lut = 255.0 * np.linspace(0.0, 1.0, 4096) ** (1.0 / sc.camera_gamma)
 
         def to8(L: NDArray[np.float32]) -> NDArray[np.float64]:
-            return lut[np.clip(L * gain * 4095.0, 0, 4095).astype(np.int32)]
+            out: NDArray[np.float64] = lut[np.clip(L * gain * 4095.0, 0, 4095).astype(np.int32)]
+            return out
 
         def radiances() -> Iterator[tuple[NDArray[np.float32], float]]:
             slide: LaserSlide | None = None
@@ -440,8 +443,7 @@ class LaserScene:
         images, _, _ = _expose(sc, r, radiances(), 0)
         out = compress_frames(images, sc.compression, fps=p.fps)
         del images
-        for img, truth in zip(out, truths, strict=True):
-            yield img, truth
+        yield from zip(out, truths, strict=True)
 
 
 def _replace_truth(t: LaserTruth, **kw: Any) -> LaserTruth:

@@ -26,7 +26,9 @@ and the filtered positions' RMS against the truth for each filter of
 :data:`FILTERS` (``filter.NAME.rms``), the filter restarted after each frame
 without a spot found.
 
-Options: ``method``, ``frames`` (per scene, 30 fps), and the detector's
+Options: ``method``, ``compare`` (also run the other method on the same frames:
+counts ``other.spot``, ``other.hit``, ``other.off``, ``other.false``), ``frames``
+(per scene, 30 fps), and the detector's
 keyword options as ``--opt KEY=VALUE`` for the ``colour`` method's tuning
 (``saturated``, ``halo``, ``colour_ratio``, ``track_px``).
 """
@@ -79,7 +81,9 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     """Run the detector over one laser scene and score every frame against its truth."""
     sc = LaserScene(seed, frames=int(options.get("frames", 75)))
     scene = sc.scene
-    det = make_detector(str(options.get("method", "colour")), sc.laser.colour, screen_mask(scene), options)
+    det = make_detector(
+        str(options.get("method", "colour")), sc.laser.colour, screen_mask(scene), options
+    )
     k = ref_scale(scene)
     counts = dict.fromkeys(_COUNTS, 0)
     errors: list[float] = []
@@ -98,6 +102,17 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
             xy = scene.image_to_screen(np.array([[s.u, s.v]]))[0]
             found = (float(s.u), float(s.v))
         entry: dict[str, Any] = {**truth.to_dict(), "found_uv": found}
+        if other is not None:
+            so = other.detect(img)
+            if not truth.on:
+                oc["off"] += 1
+                oc["false"] += so is not None
+            elif truth.visible and truth.xy is not None:
+                oc["spot"] += 1
+                if so is not None:
+                    oxy = scene.image_to_screen(np.array([[so.u, so.v]]))[0]
+                    oe = float(np.hypot(*((oxy - np.asarray(truth.xy)) * k)))
+                    oc["hit"] += bool(oe <= truth.tol_px)
         log.append(entry)
         if not truth.on:
             counts["off"] += 1
@@ -124,6 +139,8 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
             fx = f(t, [xy[0] / (sw - 1), xy[1] / (sh - 1)])
             d = (np.array([fx[0] * (sw - 1), fx[1] * (sh - 1)]) - np.asarray(truth.xy)) * k
             ferr[name].append(float(np.hypot(*d)))
+    if other is not None:
+        counts.update({f"other.{key}": v for key, v in oc.items()})
     res = SceneResult(seed, classes=sc.classes(), counts=counts)
     spot = counts["spot"]
     res.metrics["miss_rate"] = 1.0 - counts["hit"] / spot if spot else math.nan
@@ -203,6 +220,17 @@ def summarize(results: Sequence[SceneResult], options: Mapping[str, Any]) -> dic
             if rr["spot_frames"] and rr["detected_within"] < worst_class[0]:
                 worst_class = (rr["detected_within"], f"{axis}={value}")
     errs = [r.metrics.get("err.max", math.nan) for r in ok]
+    osum = {
+        key: sum(r.counts.get(f"other.{key}", 0) for r in ok)
+        for key in ("spot", "hit", "off", "false")
+    }
+    other_name = "white-core" if options.get("method", "colour") == "colour" else "colour"
+    other = (
+        f"{other_name} on the same frames: {osum['hit']}/{osum['spot']} spot frames within "
+        f"tolerance ({osum['hit'] / osum['spot']:.4f}), false {osum['false']}/{osum['off']}"
+        if osum["spot"]
+        else "not run (--opt compare=true)"
+    )
     worst = sorted(ok, key=lambda r: -r.metrics.get("miss_rate", 0.0))[:8]
     rate, frate = pooled["detected_within"], pooled["false_rate"]
     return {
@@ -227,6 +255,7 @@ def summarize(results: Sequence[SceneResult], options: Mapping[str, Any]) -> dic
             },
         ],
         "pooled": pooled,
+        "other method": other,
         "classes": classes,
         "largest error, screen px (max over scenes)": float(np.nanmax(errs)) if ok else math.nan,
         "worst scenes (seed: missed+far / spot frames, false)": {
@@ -244,6 +273,7 @@ TASK = Task(
     summarize=summarize,
     options={
         "method": "colour",
+        "compare": True,
         "frames": 75,
         "saturated": -1,
         "halo": -1.0,
