@@ -81,9 +81,13 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     """Run the detector over one laser scene and score every frame against its truth."""
     sc = LaserScene(seed, frames=int(options.get("frames", 75)))
     scene = sc.scene
-    det = make_detector(
-        str(options.get("method", "colour")), sc.laser.colour, screen_mask(scene), options
-    )
+    method = str(options.get("method", "colour"))
+    mask = screen_mask(scene)
+    det = make_detector(method, sc.laser.colour, mask, options)
+    # the other method on the same frames, for the comparison (counts "other.*")
+    other_name = "white-core" if method == "colour" else "colour"
+    other = make_detector(other_name, sc.laser.colour, mask, {}) if options.get("compare") else None
+    oc = dict.fromkeys(("spot", "hit", "off", "false"), 0)
     k = ref_scale(scene)
     counts = dict.fromkeys(_COUNTS, 0)
     errors: list[float] = []
@@ -229,7 +233,7 @@ def summarize(results: Sequence[SceneResult], options: Mapping[str, Any]) -> dic
         f"{other_name} on the same frames: {osum['hit']}/{osum['spot']} spot frames within "
         f"tolerance ({osum['hit'] / osum['spot']:.4f}), false {osum['false']}/{osum['off']}"
         if osum["spot"]
-        else "not run (--opt compare=true)"
+        else "no spot frames compared (--opt compare=true runs it)"
     )
     worst = sorted(ok, key=lambda r: -r.metrics.get("miss_rate", 0.0))[:8]
     rate, frate = pooled["detected_within"], pooled["false_rate"]
