@@ -34,7 +34,8 @@ class SceneResult:
     ``message``) or ``error`` (an unexpected exception: a bug). ``metrics``: named
     figures (units in the name or the task's doc, e.g. ``radial.rms``), NaN when
     not measured. ``counts``: integers that pool by summing (detections, false
-    positives). ``flags``: booleans (e.g. ``in_spec``). ``seconds``: wall time.
+    positives). ``flags``: booleans (e.g. ``in_spec``). ``notes``: text (e.g. the
+    message of a second method that refused). ``seconds``: wall time.
     """
 
     seed: int
@@ -44,6 +45,7 @@ class SceneResult:
     metrics: dict[str, float] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
     flags: dict[str, bool] = field(default_factory=dict)
+    notes: dict[str, str] = field(default_factory=dict)
     seconds: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:

@@ -1291,8 +1291,9 @@ class SceneRenderer:
             cv2.copyMakeBorder(lin, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=(0.0, 0.0, 0.0)),
             np.float32,
         )
-        mx = (self.sx + np.float32(0.5)) / np.float32(scale) - np.float32(0.5) + np.float32(1.0)
-        my = (self.sy + np.float32(0.5)) / np.float32(scale) - np.float32(0.5) + np.float32(1.0)
+        # cv2.pyrDown centres output pixel i on input pixel 2i: level-L x = x / 2^L
+        mx = self.sx / np.float32(scale) + np.float32(1.0)
+        my = self.sy / np.float32(scale) + np.float32(1.0)
         ss = cv2.remap(
             lin,
             mx,

@@ -18,9 +18,15 @@ fraction the truth says are visible, whole disc). Flags: ``in_spec`` (the
 whole screen and >= 90 % of the dots visible: the scenes the method must not
 refuse), ``large`` (camera >= 640x480).
 
-Options: ``layout`` (``default``: 9 x 9 dots; ``random``: rows, columns,
-margins and radius drawn from the seed), ``frames_per_still`` (frames shown
-per pattern before the kept one).
+A dot counts as visible when its whole disc is in the picture, not occluded,
+and at least 1.5 image px in radius (a smaller dot cannot be resolved).
+
+Options: ``layout`` (``random``, default: 40 % the 9 x 9 default, else rows,
+columns, margins and radius drawn from the seed; ``default``: 9 x 9 dots),
+``frames_per_still`` (frames shown per pattern before the kept one),
+``border`` (``region`` or the dissertation's ``tdm``), ``coded`` (also show a
+ChArUco board, :mod:`omnidev.screencal.coded`, and measure it: ``coded.radial.rms``
+etc., ``coded.ok`` 1 or 0 for refused).
 """
 
 from __future__ import annotations
@@ -36,8 +42,21 @@ import numpy as np
 
 from omnidev.errors import CalibrationError
 from omnidev.evaluation.framework import SceneResult, Task
-from omnidev.screencal.calibration import METHODS, ScreenFeatures, detect_screen, fit_calibration
-from omnidev.screencal.patterns import black_pattern, dot_grid, dot_pattern, white_pattern
+from omnidev.screencal.calibration import (
+    METHODS,
+    ScreenFeatures,
+    detect_screen,
+    detect_screen_coded,
+    fit_calibration,
+)
+from omnidev.screencal.coded import CodedLayout, charuco_layout, charuco_pattern
+from omnidev.screencal.patterns import (
+    DotGrid,
+    black_pattern,
+    dot_grid,
+    dot_pattern,
+    white_pattern,
+)
 from omnidev.sim.screen_scenes import ScreenScene, capture_stills, draw_scene
 
 RMS_BOUND, MAX_BOUND = 0.5, 1.5  # issue 12, screen px of a 1920x1080 screen
@@ -60,10 +79,14 @@ def _to_ref(d: np.ndarray, screen_px: tuple[int, int]) -> np.ndarray:
 
 
 def _measure(
-    features: ScreenFeatures, uv: np.ndarray, xy: np.ndarray, screen_px: tuple[int, int]
+    features: ScreenFeatures,
+    uv: np.ndarray,
+    xy: np.ndarray,
+    screen_px: tuple[int, int],
+    methods: Sequence[str] = METHODS,
 ) -> dict[str, float]:
     out: dict[str, float] = {}
-    for m in METHODS:
+    for m in methods:
         est = fit_calibration(features, m).image_to_screen(uv)
         d = _to_ref(est - xy, screen_px)
         e = np.hypot(d[:, 0], d[:, 1])
@@ -76,21 +99,66 @@ def _measure(
     return out
 
 
-def _captures(scene: ScreenScene, frames_per_still: int) -> list[np.ndarray]:
+MIN_DOT_RADIUS_PX = 1.5  # image px: a smaller dot is not "visible" (it cannot be resolved)
+
+
+def draw_layout(seed: int, screen_px: tuple[int, int], kind: str) -> DotGrid:
+    """The displayed dot layout: ``default`` 9 x 9; ``random``: 40 % the default, else
+    rows 4-11, columns 4-14, margins 2-15 % (or one spacing), radius 0.12-0.3 spacing."""
+    SW, SH = screen_px
+    if kind == "default":
+        return dot_grid(SW, SH, 9)
+    if kind != "random":
+        raise CalibrationError(f"layout option {kind!r}: 'default' or 'random'")
+    rng = np.random.default_rng([seed, 5005])
+    if rng.random() < 0.4:
+        return dot_grid(SW, SH, 9)
+    rows, cols = int(rng.integers(4, 12)), int(rng.integers(4, 15))
+    margin = None if rng.random() < 0.3 else (float(rng.uniform(0.02, 0.15)),) * 2
+    base = dot_grid(SW, SH, rows=rows, cols=cols, margin=margin, radius_px=1.0)
+    radius = float(rng.uniform(0.12, 0.3)) * min(base.spacing_px)
+    radius = min(radius, min(base.margin_px) - 1.0)
+    return dot_grid(SW, SH, rows=rows, cols=cols, margin=margin, radius_px=max(radius, 2.0))
+
+
+def dot_image_radius(scene: ScreenScene, grid: DotGrid) -> np.ndarray:
+    """Each dot's smallest image radius (px): its disc's 8 rim points through the truth."""
+    c = scene.screen_to_image(grid.centers)
+    out = np.full(len(c), np.inf)
+    for a in np.arange(8) * np.pi / 4:
+        rim = grid.centers + grid.radius_px * np.array([np.cos(a), np.sin(a)])
+        out = np.minimum(out, np.hypot(*(scene.screen_to_image(rim) - c).T))
+    radius: np.ndarray = np.nan_to_num(out, nan=0.0)
+    return radius
+
+
+def _captures(
+    scene: ScreenScene, grid: DotGrid, frames_per_still: int, coded: CodedLayout | None = None
+) -> list[np.ndarray]:
+    """White, black, dots (and the ChArUco board) as the camera captures them."""
     SW, SH = scene.screen_px
-    pats = [white_pattern(SW, SH), black_pattern(SW, SH), dot_pattern(SW, SH, 9)[0]]
+    pats = [white_pattern(SW, SH), black_pattern(SW, SH), dot_pattern(SW, SH, layout=grid)[0]]
+    if coded is not None:
+        pats.append(charuco_pattern(SW, SH, cols=coded.cols, rows=coded.rows)[0])
     return capture_stills(scene, pats, frames_per_still=frames_per_still)
+
+
+def _coded_layout(seed: int, screen_px: tuple[int, int]) -> CodedLayout:
+    """A ChArUco board of 16 x 9 squares (60 %) or 12 x 7 / 20 x 11 squares."""
+    rng = np.random.default_rng([seed, 6006])
+    cols, rows = [(16, 9), (16, 9), (16, 9), (12, 7), (20, 11)][int(rng.integers(5))]
+    return charuco_layout(screen_px[0], screen_px[1], cols=cols, rows=rows)
 
 
 def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> SceneResult:
     """Calibrate one randomized scene and measure every method against its truth."""
     scene = draw_scene(seed)
-    SW, SH = scene.screen_px
-    n = 9
-    grid = dot_grid(SW, SH, n)
+    SW = scene.screen_px[0]
+    grid = draw_layout(seed, scene.screen_px, str(options.get("layout", "random")))
     classes = scene.classes()
-    classes["layout"] = f"{n}x{n}"
-    vis_dots = scene.visible(grid.centers, grid.radius_px)
+    classes["layout"] = "9x9" if grid.shape == (9, 9) and grid.margin_px[0] == SW / 10 else "other"
+    size_ok = dot_image_radius(scene, grid) >= MIN_DOT_RADIUS_PX
+    vis_dots = scene.visible(grid.centers, grid.radius_px) & size_ok
     in_spec = scene.screen_fully_visible() and float(vis_dots.mean()) >= 0.9
     res = SceneResult(
         seed,
@@ -98,19 +166,35 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         flags={"in_spec": in_spec, "large": scene.size[0] * scene.size[1] >= 640 * 480},
     )
     res.metrics["dots.visible"] = float(vis_dots.mean())
-    white, black, dots = _captures(scene, int(options.get("frames_per_still", 3)))
+    coded = _coded_layout(seed, scene.screen_px) if options.get("coded", True) else None
+    caps = _captures(scene, grid, int(options.get("frames_per_still", 3)), coded)
+    white, black, dots = caps[:3]
     xy = heldout_points(scene.screen_px)
     xy = xy[scene.visible(xy)]
     uv = scene.screen_to_image(xy)
     if outdir is not None:
-        _write(outdir, scene, (white, black, dots), uv, xy)
+        _write(outdir, scene, caps, uv, xy)
+    if coded is not None:
+        try:
+            cf = detect_screen_coded(
+                white, black, caps[3], coded, border=str(options.get("border", "region"))
+            )
+            res.metrics["coded.ok"] = 1.0
+            res.metrics["coded.found"] = float(cf.dots.count / coded.lattice.count)
+            for k, v in _measure(cf, uv, xy, scene.screen_px, ("radial", "homography")).items():
+                res.metrics[f"coded.{k}"] = v
+        except CalibrationError as exc:
+            res.metrics["coded.ok"] = 0.0
+            res.notes["coded"] = str(exc)
     try:
-        features = detect_screen(white, black, dots, n=n, screen_size=(SW, SH))
+        features = detect_screen(
+            white, black, dots, layout=grid, border=str(options.get("border", "region"))
+        )
     except CalibrationError as exc:
         res.status = "refused"
         res.message = str(exc)
         return res
-    res.metrics["dots.found"] = float(features.dots.count / (n * n))
+    res.metrics["dots.found"] = float(features.dots.count / grid.count)
     res.metrics.update(_measure(features, uv, xy, scene.screen_px))
     return res
 
@@ -118,14 +202,14 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
 def _write(
     outdir: Path,
     scene: ScreenScene,
-    images: tuple[np.ndarray, np.ndarray, np.ndarray],
+    images: Sequence[np.ndarray],
     uv: np.ndarray,
     xy: np.ndarray,
 ) -> None:
     from omnidev.atomic import atomic_path
 
     outdir.mkdir(parents=True, exist_ok=True)
-    for name, img in zip(("white", "black", "dots"), images, strict=True):
+    for name, img in zip(("white", "black", "dots", "coded"), images, strict=False):
         with atomic_path(outdir / f"{name}.png", force=True) as tmp:
             cv2.imwrite(str(tmp), img)
     doc = {
@@ -191,7 +275,23 @@ def summarize(results: Sequence[SceneResult], options: Mapping[str, Any]) -> dic
         ],
         "small cameras (<640x480), radial pass rate": _fraction(ok_small, "radial"),
         "methods": methods,
+        "coded pattern (ChArUco), radial": {
+            "refused_in_spec": _coded_refused(spec),
+            "pass_rate_large": _fraction(
+                [r for r in results if r.flags.get("large") and r.metrics.get("coded.ok")],
+                "coded.radial",
+            ),
+            "pass_rate_small": _fraction(
+                [r for r in results if not r.flags.get("large") and r.metrics.get("coded.ok")],
+                "coded.radial",
+            ),
+        },
     }
+
+
+def _coded_refused(rs: Sequence[SceneResult]) -> float:
+    tried = [r for r in rs if "coded.ok" in r.metrics]
+    return float(np.mean([r.metrics["coded.ok"] == 0 for r in tried])) if tried else math.nan
 
 
 TASK = Task(
@@ -199,9 +299,10 @@ TASK = Task(
     help="screen calibration (dissertation ch. 5) on randomized scenes",
     run_scene=run_scene,
     summarize=summarize,
-    options={"layout": "default", "frames_per_still": 3},
+    options={"layout": "random", "frames_per_still": 3, "border": "region", "coded": True},
     headline=(
         "radial.rms",
+        "coded.radial.rms",
         "radial.max",
         "tsai.rms",
         "homography.rms",
