@@ -97,6 +97,16 @@ class ColourSpotDetector:
         busy_gain: in busy regions, the ring gain (grey levels) a blob far from the
             previous spot needs.
         bands: the model is refreshed one row band of ``bands`` per frame.
+        max_darker: with the model: the largest fraction of the blob and the 3 px around
+            it where some channel got darker than the model by ``rise`` (a laser only
+            adds light; content of the laser's colour moving in replaces what was there).
+        min_cross: with the model: the smallest rise of the strongest other channel over
+            the model, linear light (0..1), on the upper half of the blob (a laser's light
+            leaks into every channel; content of its colour raises only its own). 0: off.
+        busy_events: frames of the last 16 with darker content that make a block busy.
+        position: "centroid" (the soft-edged centroid of the clipped blob) or "fit" (the
+            beam centre from a Gaussian fit to the laser channel's rise over the model on
+            the unclipped pixels around the blob; the centroid where it does not fit).
     """
 
     def __init__(
@@ -121,6 +131,10 @@ class ColourSpotDetector:
         track_px: float = 80.0,
         busy_gain: float = 60.0,
         bands: int = 8,
+        max_darker: float = 0.2,
+        min_cross: float = 0.04,
+        busy_events: int = 2,
+        position: str = "centroid",
     ) -> None:
         if colour not in COLOURS:
             raise ValueError(f"colour must be one of {', '.join(COLOURS)}, got {colour!r}")
@@ -159,6 +173,17 @@ class ColourSpotDetector:
         self.track_px = track_px
         self.busy_gain = busy_gain
         self.bands = bands
+        if not 0.0 <= max_darker <= 1.0 or position not in ("fit", "centroid"):
+            raise ValueError(
+                f"need 0 <= max_darker <= 1 and position 'fit' or 'centroid', got {max_darker},"
+                f" {position!r}"
+            )
+        self.max_darker = max_darker
+        self.min_cross = min_cross
+        if not 1 <= busy_events <= 16:
+            raise ValueError(f"need busy_events 1..16, got {busy_events}")
+        self.busy_events = busy_events
+        self.position = position
         self.half = math.ceil(math.sqrt(max_area / math.pi)) + 12  # window half size, px
         self._k3 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
         self._k7 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
@@ -177,6 +202,8 @@ class ColourSpotDetector:
         self._busy = np.zeros((0, 0), np.int32)  # per block: frame until which it is busy
         self._history = np.zeros((0, 0), np.uint16)  # per block: frames with darker content
         self._last: LaserSpot | None = None
+        # the model before this frame's darker pixels replaced it: (row, col, values)
+        self._prefix: tuple[int, int, NDArray[np.uint8]] | None = None
 
     def reset(self) -> None:
         """Forget the content model (the next frame starts it again)."""
@@ -222,6 +249,7 @@ class ColourSpotDetector:
             self.slide_changes += 1
             return self._restart(image)
         self._mark_busy(dec_any)
+        self._prefix = None
         self._fix_darker(image, dec_any)
         cands = []
         for c in self.channels:
@@ -298,7 +326,8 @@ class ColourSpotDetector:
         frac = hit[: bh * kb, : bw * kb].reshape(bh, kb, bw, kb).mean(axis=(1, 3))
         self._history[frac >= 0.1] |= 1
         counts = _POPCOUNT[self._history & 0xFF] + _POPCOUNT[self._history >> 8]
-        busy = cv2.dilate((counts >= 2).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        many = (counts >= self.busy_events).astype(np.uint8)
+        busy = cv2.dilate(many, np.ones((3, 3), np.uint8)).astype(bool)
         self._busy[busy] = self._frame + self.busy_frames
 
     def _is_busy(self, u: float, v: float) -> bool:
@@ -323,6 +352,7 @@ class ColourSpotDetector:
         sub = hit[r0 // k : -(-r1 // k), c0 // k : -(-c1 // k)]
         full = np.repeat(np.repeat(sub, k, axis=0), k, axis=1)[: r1 - r0, : c1 - c0]
         grown = cv2.dilate(full, np.ones((2 * k + 1,) * 2, np.uint8)).view(bool)
+        self._prefix = (r0, c0, bg[r0:r1, c0:c1].copy())
         np.copyto(bg[r0:r1, c0:c1], image[r0:r1, c0:c1], where=grown[..., None])
         self._model_changed(slice(r0, r1), slice(c0, c1))
 
@@ -491,6 +521,11 @@ class ColourSpotDetector:
             was = self._planes[c][v0:v1, u0:u1][sel]
             if np.count_nonzero(was < self.saturated - _NEW_MARGIN) < self.min_new * was.size:
                 return None, ibox
+        model = None if bg is None else self._model_window(bg, v0, v1, u0, u1)
+        if model is not None and not (
+            self._adds_light(win, model, sel) and self._cross_rise(win, model, sel, c)
+        ):
+            return None, ibox
         gain = self._colour(win, None if bg is None or busy else bg[v0:v1, u0:u1], sel, c)
         if gain is None:
             return None, ibox
@@ -500,15 +535,103 @@ class ColourSpotDetector:
         ys, xs = np.nonzero(region)
         tot = float(wgt.sum())
         area = int(np.count_nonzero(sel))
+        pu, pv = float((wgt * xs).sum()) / tot, float((wgt * ys).sum()) / tot
+        if model is not None and self.position == "fit":
+            fit = self._fit_centre(win, model, sel, c)
+            reach = 0.25 * (box[3] - box[2] + box[1] - box[0]) + 1.0
+            if fit is not None and math.hypot(fit[0] - pu, fit[1] - pv) <= reach:
+                pu, pv = fit
         spot = LaserSpot(
-            float((wgt * xs).sum()) / tot + u0,
-            float((wgt * ys).sum()) / tot + v0,
+            pu + u0,
+            pv + v0,
             area,
             int(lc[sel].max()),
             area * gain,
             "red" if c == 2 else "green",
         )
         return spot, ibox
+
+    def _model_window(
+        self, bg: NDArray[np.uint8], v0: int, v1: int, u0: int, u1: int
+    ) -> NDArray[np.uint8]:
+        """The content model in a window as it was before this frame's darker pixels
+        replaced it."""
+        out = bg[v0:v1, u0:u1]
+        if self._prefix is None:
+            return out
+        r0, c0, saved = self._prefix
+        a0, a1 = max(v0, r0), min(v1, r0 + saved.shape[0])
+        b0, b1 = max(u0, c0), min(u1, c0 + saved.shape[1])
+        if a0 >= a1 or b0 >= b1:
+            return out
+        out = out.copy()
+        out[a0 - v0 : a1 - v0, b0 - u0 : b1 - u0] = saved[a0 - r0 : a1 - r0, b0 - c0 : b1 - c0]
+        return out
+
+    def _adds_light(
+        self, win: NDArray[np.uint8], model: NDArray[np.uint8], sel: NDArray[np.bool_]
+    ) -> bool:
+        """A laser only adds light: over the blob and the 3 px around it, at most
+        ``max_darker`` of the pixels may have any channel darker than the model by
+        ``rise`` (content of the laser's colour moving in replaces what was there)."""
+        grown = cv2.dilate(sel.view(np.uint8), self._k7).view(bool)
+        drop = cv2.subtract(model, win).max(axis=2)[grown]
+        return bool(np.count_nonzero(drop >= self.rise) <= self.max_darker * drop.size)
+
+    def _cross_rise(
+        self,
+        win: NDArray[np.uint8],
+        model: NDArray[np.uint8],
+        sel: NDArray[np.bool_],
+        c: int,
+    ) -> bool:
+        """A laser's light reaches the other channels too (a colour filter passes some of
+        every wavelength; chroma subsampling adds more): over the blob, the upper half of
+        the strongest other channel's rise over the model, in linear light, is at least
+        ``min_cross`` (content of the laser's colour appearing raises only its channel;
+        where the other channels already clip, nothing is asked)."""
+        if self.min_cross <= 0:
+            return True
+        a, b = (o for o in (0, 1, 2) if o != c)
+        now = np.maximum(win[:, :, a], win[:, :, b])[sel]
+        was = np.maximum(model[:, :, a], model[:, :, b])[sel]
+        room = _LIN[255] - _LIN[was]
+        rise = _LIN[now] - _LIN[was]
+        srt = np.sort(np.where(room < self.min_cross, self.min_cross, rise))
+        return bool(srt[srt.size // 2 :].mean() >= self.min_cross)
+
+    def _fit_centre(
+        self,
+        win: NDArray[np.uint8],
+        model: NDArray[np.uint8],
+        sel: NDArray[np.bool_],
+        c: int,
+    ) -> tuple[float, float] | None:
+        """The beam's centre (window px) from the laser channel's rise over the model in
+        linear light on the unclipped pixels around the blob: a weighted least-squares fit
+        of ``ln rise = a + b u + c v + d (u^2 + v^2)`` (a round beam; the clipped core,
+        whose shape follows the content under it, is left out). None if it does not fit."""
+        r = max(2.0, math.sqrt(np.count_nonzero(sel) / math.pi))
+        size = 2 * math.ceil(r + 4) + 1
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+        grown = cv2.dilate(sel.view(np.uint8), ker).view(bool)
+        lc = win[:, :, c]
+        rise = _LIN[lc] - _LIN[model[:, :, c]]
+        use = grown & ~sel & (lc < self.saturated) & (rise > 0.02)
+        n = int(np.count_nonzero(use))
+        if n < 8:
+            return None
+        ys, xs = np.nonzero(use)
+        y = np.log(rise[use])
+        w = rise[use]
+        xm, ym = float(xs.mean()), float(ys.mean())
+        dx, dy = xs - xm, ys - ym
+        A = np.column_stack([np.ones(n), dx, dy, dx * dx + dy * dy])
+        sol, *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
+        d = float(sol[3])
+        if not d < -1e-4:
+            return None
+        return xm - float(sol[1]) / (2 * d), ym - float(sol[2]) / (2 * d)
 
     def _blob(
         self, binary: NDArray[np.bool_], su: int, sv: int

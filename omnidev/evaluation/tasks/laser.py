@@ -30,7 +30,10 @@ Options: ``method``, ``compare`` (also run the other method on the same frames:
 counts ``other.spot``, ``other.hit``, ``other.off``, ``other.false``), ``frames``
 (per scene, 30 fps), and the detector's
 keyword options as ``--opt KEY=VALUE`` for the ``colour`` method's tuning
-(``saturated``, ``halo``, ``colour_ratio``, ``track_px``).
+(``saturated``, ``halo``, ``colour_ratio``, ``track_px``, ``busy_gain``,
+``max_darker``, ``min_cross``, ``busy_events``, ``position``), and ``cache`` (a directory:
+rendered frames are kept there and reused, so methods compared on the same scenes
+are rendered once; the frames depend only on the seed and ``frames``).
 """
 
 from __future__ import annotations
@@ -49,7 +52,7 @@ from omnidev.evaluation.framework import SceneResult, Task
 from omnidev.filters import OneEuroFilter
 from omnidev.laser.colour_spot import ColourSpotDetector
 from omnidev.laser.spot import SpotDetector
-from omnidev.sim.laser_scenes import LaserScene, ref_scale, screen_mask
+from omnidev.sim.laser_scenes import LaserScene, LaserTruth, ref_scale, screen_mask
 
 RATE_BOUND, CLASS_BOUND, FALSE_BOUND = 0.99, 0.97, 0.001  # issue 12
 CLASS_AXES = ("look", "colour", "compression", "slide", "resolution")
@@ -58,6 +61,11 @@ FILTERS: dict[str, tuple[float, float, float, float | None]] = {
     "mouse-default": (0.1, 20.0, 2.0, None),
     "laser-default": (1.5, 20.0, 2.0, 0.1),
 }
+# the colour detector's options the task passes on (unset: -1 or "")
+_DETECTOR_OPTIONS = (
+    "saturated", "halo", "colour_ratio", "track_px", "busy_gain", "max_darker", "min_cross",
+    "busy_events", "position",
+)  # fmt: skip
 _COUNTS = ("spot", "hit", "far", "missed", "off", "false", "hidden", "refused")
 
 
@@ -68,8 +76,8 @@ def make_detector(
     if method == "colour":
         kw = {
             k: options[k]
-            for k in ("saturated", "halo", "colour_ratio", "track_px")
-            if options.get(k) is not None and options[k] != -1
+            for k in _DETECTOR_OPTIONS
+            if options.get(k) is not None and options[k] not in (-1, "")
         }
         return ColourSpotDetector(colour, mask, **kw)
     if method == "white-core":
@@ -95,7 +103,7 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     ferr: dict[str, list[float]] = {n: [] for n in FILTERS}
     log: list[dict[str, Any]] = []
     sw, sh = scene.screen_px
-    for img, truth in sc.frames():
+    for img, truth in _frames(sc, str(options.get("cache", ""))):
         before = getattr(det, "refused", 0)
         s = det.detect(img)
         counts["refused"] += getattr(det, "refused", 0) - before
@@ -160,6 +168,28 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     if outdir is not None:
         _write(outdir, sc, log)
     return res
+
+
+def _frames(sc: LaserScene, cache: str) -> list[tuple[np.ndarray, LaserTruth]]:
+    """The scene's frames and truth, rendered, or read from (and written to) the cache
+    directory ``cache`` (one file per seed and frame count; "" for none): methods
+    compared on the same scenes need rendering them only once."""
+    if not cache:
+        return list(sc.frames())
+    import pickle
+
+    from omnidev.atomic import atomic_path
+
+    path = Path(cache) / f"laser-{sc.seed}-{sc.laser.frames}.pkl"
+    if path.is_file():
+        with path.open("rb") as f:
+            imgs, truths = pickle.load(f)
+        return [(i, LaserTruth(**t)) for i, t in zip(imgs, truths, strict=True)]
+    out = list(sc.frames())
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path, force=True) as tmp, tmp.open("wb") as f:
+        pickle.dump(([i for i, _ in out], [t.to_dict() for _, t in out]), f, protocol=5)
+    return out
 
 
 def _write(outdir: Path, sc: LaserScene, log: list[dict[str, Any]]) -> None:
@@ -283,6 +313,12 @@ TASK = Task(
         "halo": -1.0,
         "colour_ratio": -1.0,
         "track_px": -1.0,
+        "busy_gain": -1.0,
+        "max_darker": -1.0,
+        "min_cross": -1.0,
+        "busy_events": -1,
+        "position": "",
+        "cache": "",
     },
     headline=(
         "miss_rate",

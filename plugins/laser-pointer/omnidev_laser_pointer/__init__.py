@@ -44,7 +44,8 @@ METHOD_OPTIONS: dict[str, dict[str, type]] = {
         "step": int, "saturated": int, "soft": int, "rise": int, "min_area": int,
         "max_area": int, "busy_frames": int, "bands": int, "halo": float,
         "colour_ratio": float, "min_new": float, "max_elongation": float, "min_fill": float,
-        "change_fraction": float, "track_px": float,
+        "change_fraction": float, "track_px": float, "busy_gain": float, "fringe": float,
+        "max_darker": float, "min_cross": float, "busy_events": int, "position": str,
     },
     "white-core": {
         "step": int, "rise": int, "core": int, "saturated": int, "min_area": int,
