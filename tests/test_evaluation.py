@@ -16,6 +16,7 @@ from omnidev.evaluation.framework import (
     by_class,
     evaluate,
     load_task,
+    merge_reports,
     pooled,
     refusals,
     run_one,
@@ -71,6 +72,24 @@ def test_pooling_helpers_agree() -> None:
     assert by_class(rs, ("err",))["size"]["big"]["metrics"]["err"]["n"] == 2
 
 
+def test_reports_of_chunks_merge_into_the_whole_run() -> None:
+    whole = evaluate(FAKE, scenes=8, seed=0, progress=False)
+    parts = [evaluate(FAKE, scenes=n, seed=s, progress=False) for s, n in ((5, 3), (0, 5))]
+    doc = merge_reports(FAKE, [("b", json.loads(json.dumps(parts[0]))), ("a", parts[1])])
+    for key in ("pooled", "refusals", "errors", "classes", "seed_range", "scenes"):
+        a, b = doc[key], whole[key]
+        if key == "pooled":
+            a, b = (dict(x, seconds_per_scene=None) for x in (a, b))
+        assert a == b, key
+    assert doc["merged_from"] == ["b", "a"]
+    with pytest.raises(OmnidevError, match="a: scene seed 0 is also in b"):
+        merge_reports(FAKE, [("b", parts[1]), ("a", parts[1])])
+    with pytest.raises(OmnidevError, match="x: task options .* differ"):
+        merge_reports(FAKE, [("b", parts[0]), ("x", dict(parts[1], options={"k": 2}))])
+    with pytest.raises(OmnidevError, match="y: not an 'omnidev eval fake' report"):
+        merge_reports(FAKE, [("y", [1, 2])])  # type: ignore[list-item]
+
+
 def test_options_are_typed_and_checked() -> None:
     assert typed_options(FAKE, {"k": "3", "on": "yes"}) == {"k": 3, "on": True}
     with pytest.raises(OmnidevError, match="unknown option 'x'.*options: k, on"):
@@ -104,3 +123,47 @@ def test_cli_json_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert rc == 0 and json.loads(out.read_text()) == doc
     assert doc["seed_range"] == [1003, 1003] and len(doc["per_scene"]) == 1
     assert doc["summary"]["acceptance"][0]["bound"] == "<= 0.01"
+    # a saved report merges (here with nothing else) into the same figures
+    assert main(["eval", "screen", "--merge", str(out), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["pooled"]["metrics"] == doc["pooled"]["metrics"]
+    assert again["summary"] == doc["summary"]
+    assert main(["eval", "screen", "--merge", str(out), str(out)]) == 2
+    assert "is also in" in capsys.readouterr().err
+    assert main(["eval", "screen", "--merge", str(tmp_path / "none.json")]) == 2
+    assert "none.json: no such report" in capsys.readouterr().err
+
+
+def test_cli_replays_one_scene_and_writes_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "scene"
+    rc = main(
+        ["eval", "screen", "--scene-seed", "1003", "--write", str(out), "--opt", "coded=false"]
+    )
+    text = capsys.readouterr().out
+    assert rc == 0 and "scene 1003: ok" in text and "radial.rms" in text
+    for name in ("white.png", "black.png", "dots.png"):
+        assert (out / name).is_file()
+    truth = json.loads((out / "truth.json").read_text())
+    assert len(truth["image_points"]) == len(truth["screen_points"]) > 1000
+    # the written truth file is one `calibrate screen --truth` takes
+    rc = main(
+        [
+            "calibrate",
+            "screen",
+            "--white",
+            str(out / "white.png"),
+            "--black",
+            str(out / "black.png"),
+            "--dots",
+            str(out / "dots.png"),
+            "--layout",
+            str(out / "layout.json"),
+            "-o",
+            str(tmp_path / "c.yml"),
+            "--truth",
+            str(out / "truth.json"),
+        ]
+    )
+    assert rc == 0 and "truth points:" in capsys.readouterr().out

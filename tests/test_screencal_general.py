@@ -119,7 +119,7 @@ def test_wrong_layout_says_what_was_found() -> None:
 
 def test_border_ignores_a_room_brightened_by_auto_exposure() -> None:
     """Full auto-exposure: the room is brighter in the black capture than in the white
-    one; the screen's corners stay on the screen (within 1 screen px)."""
+    one; the screen's corners stay on the screen (within one image px of the truth)."""
     sc = replace(_scene(3), ae_strength=1.0, ae_lag=1.0, compression=Compression("none"))
     W, H = SCREEN
     w, b = capture_stills(sc, [white_pattern(W, H), black_pattern(W, H)])
@@ -129,9 +129,10 @@ def test_border_ignores_a_room_brightened_by_auto_exposure() -> None:
     grid = dot_grid(W, H)
     d = capture_stills(sc, [white_pattern(W, H), dot_pattern(W, H)[0]])[1]
     f = detect_screen(w, b, d, layout=grid)
-    corners = sc.image_to_screen(f.border.vertices[[0, 2, 4, 6]])
     truth = np.array([[-0.5, -0.5], [W - 0.5, -0.5], [W - 0.5, H - 0.5], [-0.5, H - 0.5]])
-    assert np.abs(corners - truth).max() < 1.5, corners
+    off = np.hypot(*(f.border.vertices[[0, 2, 4, 6]] - sc.screen_to_image(truth)).T)
+    # measured: 0.3-0.7 image px (the region's outline is pixel-quantized at the corners)
+    assert off.max() < 1.0, off
 
 
 def test_coded_pattern_identifies_corners_under_occlusion() -> None:
@@ -217,9 +218,9 @@ def test_cli_layout_truth_and_plot_without_truth(
     assert "7 rows x 7 col" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("seed", [5, 13])
+@pytest.mark.parametrize("seed", [5])
 def test_eval_screen_sample(seed: int) -> None:
-    """Two scenes of the evaluation (tuning seeds): calibrated within issue 12's bounds,
+    """A scene of the evaluation (tuning seeds): calibrated within issue 12's bounds,
     the dissertation's IDW and the homography far worse, the coded pattern measured."""
     res = run_one(load_task("screen"), seed, dict(load_task("screen").options), None)
     assert res.status == "ok", res.message

@@ -41,6 +41,13 @@ def register(sub: Any) -> None:
     p.add_argument("--write", type=Path, metavar="DIR", help="with --scene-seed: write its images")
     p.add_argument("--force", action="store_true", help="overwrite --output / --write")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--merge",
+        nargs="+",
+        type=Path,
+        metavar="REPORT",
+        help="pool JSON reports of TASK (e.g. a long run made in chunks of seeds) into one",
+    )
     p.set_defaults(func=run)
 
 
@@ -60,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
     from omnidev.evaluation.framework import (
         evaluate,
         load_task,
+        merge_reports,
         report_text,
         run_one,
         task_names,
@@ -98,15 +106,18 @@ def run(args: argparse.Namespace) -> int:
         return 0 if res.status != "error" else 1
     if args.write is not None:
         raise OmnidevError("--write needs --scene-seed (the one scene to write)")
-    jobs = args.jobs if args.jobs > 0 else (os.cpu_count() or 1)
-    doc = evaluate(
-        task,
-        scenes=args.scenes,
-        seed=args.seed,
-        options=options,
-        jobs=jobs,
-        progress=not args.no_progress,
-    )
+    if args.merge:
+        doc = merge_reports(task, [(str(f), _read_report(f)) for f in args.merge])
+    else:
+        jobs = args.jobs if args.jobs > 0 else (os.cpu_count() or 1)
+        doc = evaluate(
+            task,
+            scenes=args.scenes,
+            seed=args.seed,
+            options=options,
+            jobs=jobs,
+            progress=not args.no_progress,
+        )
     doc = _clean(doc)
     if args.output is not None:
         with atomic_path(args.output, force=args.force) as tmp:
@@ -118,3 +129,12 @@ def run(args: argparse.Namespace) -> int:
         if args.output is not None:
             print(f"wrote {args.output}")
     return 1 if doc["pooled"]["errors"] else 0
+
+
+def _read_report(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise OmnidevError(f"{path}: no such report") from None
+    except (OSError, ValueError) as exc:
+        raise OmnidevError(f"{path}: not a JSON report ({exc})") from None

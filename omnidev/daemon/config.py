@@ -37,7 +37,8 @@ layout = "1920x1080"          # the whole desktop (default: the rect's extent)
 
 [daemon]
 socket = "/run/omnidev/control.sock"
-queue = 1                     # frames waiting for the tracker; older ones are dropped
+queue = 1                     # frames waiting for the tracker (1 .. 16); when it is full a
+                              # camera's oldest frame is dropped, a file waits
 retry_initial_s = 0.5         # camera retry backoff: first wait ...
 retry_max_s = 10.0            # ... doubling up to this
 """
@@ -54,6 +55,9 @@ from omnidev.errors import ConfigError
 from omnidev.screen import ScreenMapping, ScreenRect
 
 DEFAULT_CONFIG = Path("/etc/omnidev/omnidev.toml")
+# Frames the queue may hold: a live source's frames beyond one or two only add
+# latency, a file's only memory (16 frames of 1920x1080 BGR are 100 MB).
+MAX_QUEUE = 16
 
 _SECTIONS: dict[str, set[str]] = {
     "source": {"uri"},
@@ -239,8 +243,12 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
         raise fail("screen.layout", str(exc)) from None
 
     queue = get("daemon", "queue", int, 1)
-    if queue < 1:
-        raise fail("daemon.queue", "must be >= 1")
+    if not 1 <= queue <= MAX_QUEUE:
+        raise fail(
+            "daemon.queue",
+            f"must be 1 .. {MAX_QUEUE} frames, got {queue} (a camera's extra frames only add "
+            "latency; a file waits for the tracker whatever the queue)",
+        )
     retry_initial = positive("daemon", "retry_initial_s", 0.5)
     retry_max = positive("daemon", "retry_max_s", 10.0)
     if retry_max < retry_initial:

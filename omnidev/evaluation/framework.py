@@ -255,14 +255,30 @@ def evaluate(
     seeds = list(range(seed, seed + scenes))
     t0 = time.perf_counter()
     results = run_scenes(task, seeds, opts, jobs=jobs, progress=progress)
+    return report(task, results, opts, jobs=jobs, seconds=time.perf_counter() - t0)
+
+
+def report(
+    task: Task,
+    results: Sequence[SceneResult],
+    options: Mapping[str, Any],
+    *,
+    jobs: int = 1,
+    seconds: float = math.nan,
+) -> dict[str, Any]:
+    """The report document of ``results`` (sorted by seed): pooled figures, refusals,
+    errors, classes, the task's summary and every scene."""
+    results = sorted(results, key=lambda r: r.seed)
+    opts = dict(options)
+    seeds = [r.seed for r in results]
     doc: dict[str, Any] = {
         "task": task.name,
-        "seed": seed,
-        "scenes": scenes,
-        "seed_range": [seed, seed + scenes - 1],
+        "seed": seeds[0],
+        "scenes": len(results),
+        "seed_range": [seeds[0], seeds[-1]],
         "options": opts,
         "jobs": jobs,
-        "seconds": time.perf_counter() - t0,
+        "seconds": seconds,
         "pooled": pooled(results),
         "refusals": refusals(results),
         "errors": refusals(results, "error"),
@@ -271,6 +287,56 @@ def evaluate(
     if task.summarize is not None:
         doc["summary"] = task.summarize(results, opts)
     doc["per_scene"] = [r.to_dict() for r in results]
+    return doc
+
+
+def result_from_dict(d: Mapping[str, Any]) -> SceneResult:
+    """A :class:`SceneResult` from its :meth:`SceneResult.to_dict` (null figures: NaN)."""
+    return SceneResult(
+        seed=int(d["seed"]),
+        classes={str(k): str(v) for k, v in d.get("classes", {}).items()},
+        status=d.get("status", "ok"),
+        message=str(d.get("message", "")),
+        metrics={
+            str(k): math.nan if v is None else float(v) for k, v in d.get("metrics", {}).items()
+        },
+        counts={str(k): int(v) for k, v in d.get("counts", {}).items()},
+        flags={str(k): bool(v) for k, v in d.get("flags", {}).items()},
+        notes={str(k): str(v) for k, v in d.get("notes", {}).items()},
+        seconds=float(d.get("seconds", 0.0)),
+    )
+
+
+def merge_reports(task: Task, docs: Sequence[tuple[str, Mapping[str, Any]]]) -> dict[str, Any]:
+    """One report from several (name, report document) of the same task and options, e.g.
+    a long run made in chunks of seeds; a scene seed in two of them is an error."""
+    if not docs:
+        raise OmnidevError("nothing to merge")
+    results: list[SceneResult] = []
+    seen: dict[int, str] = {}
+    options: Mapping[str, Any] | None = None
+    seconds = 0.0
+    for name, doc in docs:
+        if not isinstance(doc, Mapping) or doc.get("task") != task.name or "per_scene" not in doc:
+            raise OmnidevError(f"{name}: not an 'omnidev eval {task.name}' report")
+        if options is None:
+            options = doc.get("options", {})
+        elif doc.get("options", {}) != options:
+            raise OmnidevError(f"{name}: task options {doc.get('options')} differ from {options}")
+        try:
+            rs = [result_from_dict(d) for d in doc["per_scene"]]
+        except (KeyError, TypeError, ValueError) as exc:
+            raise OmnidevError(f"{name}: a per_scene entry is malformed ({exc})") from None
+        for r in rs:
+            if r.seed in seen:
+                raise OmnidevError(f"{name}: scene seed {r.seed} is also in {seen[r.seed]}")
+            seen[r.seed] = name
+        results += rs
+        seconds += float(doc.get("seconds") or 0.0)
+    if not results:
+        raise OmnidevError("the reports hold no scenes")
+    doc = report(task, results, options or {}, jobs=0, seconds=seconds)
+    doc["merged_from"] = [name for name, _ in docs]
     return doc
 
 

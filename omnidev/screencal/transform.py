@@ -219,13 +219,16 @@ class HomographyMap:
 def _radial_apply(p: FloatArray, pts: FloatArray, scale: float) -> FloatArray:
     """Image px -> screen px of the radial model with parameter vector ``p``:
     [cx, cy, k1, k2, k3, h11, h12, h13, h21, h22, h23, h31, h32] (h33 = 1)."""
-    c = p[:2]
-    q = (pts - c) / scale
-    r2 = (q**2).sum(axis=1, keepdims=True)
-    qu = q * (1 + p[2] * r2 + p[3] * r2**2 + p[4] * r2**3)
-    hm = np.append(p[5:], 1.0).reshape(3, 3)
-    h = np.c_[qu, np.ones(len(qu))] @ hm.T
-    return np.asarray(h[:, :2] / h[:, 2:], np.float64)
+    x = (pts[:, 0] - p[0]) / scale
+    y = (pts[:, 1] - p[1]) / scale
+    r2 = x * x + y * y
+    f = 1 + r2 * (p[2] + r2 * (p[3] + r2 * p[4]))
+    x, y = x * f, y * f
+    den = p[11] * x + p[12] * y + 1.0
+    out = np.empty((len(pts), 2))
+    out[:, 0] = (p[5] * x + p[6] * y + p[7]) / den
+    out[:, 1] = (p[8] * x + p[9] * y + p[10]) / den
+    return out
 
 
 class RadialMap:

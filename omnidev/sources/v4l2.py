@@ -105,7 +105,7 @@ class V4L2Source(SourceBase):
             if not ok or image is None:
                 last = f"last good frame {index - 1}" if index else "no frame received"
                 raise SourceError(f"{self.name}: stopped delivering frames ({last})")
-            yield Frame(np.asarray(image, np.uint8), t, index)
+            yield Frame(np.asarray(image, np.uint8), t, index, t)
             index += 1
 
     def close(self) -> None:

@@ -173,7 +173,7 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     xy = xy[scene.visible(xy)]
     uv = scene.screen_to_image(xy)
     if outdir is not None:
-        _write(outdir, scene, caps, uv, xy)
+        _write(outdir, scene, caps, uv, xy, grid)
     if coded is not None:
         try:
             cf = detect_screen_coded(
@@ -205,6 +205,7 @@ def _write(
     images: Sequence[np.ndarray],
     uv: np.ndarray,
     xy: np.ndarray,
+    grid: DotGrid,
 ) -> None:
     from omnidev.atomic import atomic_path
 
@@ -222,6 +223,8 @@ def _write(
         "screen_points": xy.tolist(),
         "scene": scene.to_dict(),
     }
+    with atomic_path(outdir / "layout.json", force=True) as tmp:
+        tmp.write_text(json.dumps(grid.to_dict(), indent=1) + "\n")
     with atomic_path(outdir / "truth.json", force=True) as tmp:
         tmp.write_text(json.dumps(doc, default=str) + "\n")
 
