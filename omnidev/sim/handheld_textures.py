@@ -170,7 +170,11 @@ def _window(
         _text(img, rng, inner, ink, float(rng.uniform(18, 40) * unit))
     elif what == "picture":
         w, h = inner[2] - inner[0], inner[3] - inner[1]
-        img[inner[1] : inner[3], inner[0] : inner[2]] = _photo(rng, w, h)
+        pic = _photo(rng, w, h)
+        # a window partly off the screen: only its part on the screen is drawn
+        sub = img[max(inner[1], 0) : inner[3], max(inner[0], 0) : inner[2]]
+        dy, dx = max(-inner[1], 0), max(-inner[0], 0)
+        sub[...] = pic[dy : dy + sub.shape[0], dx : dx + sub.shape[1]]
     else:
         step = max(4, int(rng.uniform(25, 50) * unit))
         for y in range(inner[1], inner[3], step):
