@@ -70,10 +70,9 @@ def _input(data: Path, videos: int, frames: int) -> tuple[list[Path], Path]:
     f = 0.5 * SIZE / math.radians(95)
     c = (SIZE - 1) / 2
     cam = data / "fisheye.yml"
-    write_camera_file(
-        cam,
-        FisheyeCamera(IdealFisheye("equidistant", f, c, c), (SIZE, SIZE), MOUNTS["up"], 95.0),
-    )
+    if not cam.exists():
+        lens = IdealFisheye("equidistant", f, c, c)
+        write_camera_file(cam, FisheyeCamera(lens, (SIZE, SIZE), MOUNTS["up"], 95.0))
     paths = [data / f"clip{k}-{frames}.mp4" for k in range(videos)]
     todo = [p for p in paths if not p.exists()]
     if not todo:
