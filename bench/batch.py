@@ -32,7 +32,9 @@ and ``noop_task_ms``: the round trip of a task that does nothing through the
 same kind of cluster (``client.map`` of 400 no-op tasks, wall / tasks, 2
 workers). The machine is shared: ``load_avg_1min_*`` says how busy it was.
 ``projection_10000h``: the archive cost figures computed from these (see
-docs/batch.md for the formula).
+docs/batch.md for the formula): the stages' CPU ms per frame plus the task's
+fixed costs over a 250-frame range (``task_setup_ms`` is wall time, so a loaded
+machine overstates it).
 """
 
 from __future__ import annotations
@@ -202,11 +204,12 @@ def run(quick: bool = False) -> dict[str, Any]:
         }
         result["cost_model"] = model
     result["noop_task_ms"] = round(_noop_ms(2), 3)
-    # per frame: the pipeline's time plus each task's fixed costs spread over a
-    # range of the default length (docs/batch.md)
-    pipeline_ms = model["task_wall_ms_per_frame"] - model["task_setup_ms"] / RANGE
+    # per frame: the pipeline stages' CPU time (not their wall time, which a
+    # loaded machine stretches) plus each task's fixed costs spread over a range
+    # of the default length (docs/batch.md)
+    cpu_ms = sum(model[f"{k}_cpu_ms_per_frame"] for k in ("decode", "remap", "encode"))
     per_frame_s = (
-        pipeline_ms + (model["task_setup_ms"] + result["noop_task_ms"]) / DEFAULT_RANGE
+        cpu_ms + (model["task_setup_ms"] + result["noop_task_ms"]) / DEFAULT_RANGE
     ) / 1000
     archive_frames = 10_000 * 3600 * 25
     core_hours = archive_frames * per_frame_s / 3600
