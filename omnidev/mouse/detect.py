@@ -463,7 +463,7 @@ def side_edge_strength(
     """
     v = q - p
     length = float(np.hypot(*v))
-    if length < 1.0:
+    if not length >= 1.0:  # also NaN (a degenerate group)
         return 0.0, 0.0, None
     t_hat = v / length
     n_hat = np.array([-t_hat[1], t_hat[0]])  # inwards for clockwise order with y down

@@ -352,10 +352,18 @@ def _plateau_centre(
     if top <= 0:
         return None
     thr = level * top
+    # a sharp peak (the common case) is decided without labelling: a ridge 3 px long
+    # reaches the ring two px around the peak, and a ridge has 3 high centres in its 3x3
+    b0, b1 = max(vy - 2, 0), min(vy + 3, score.shape[0])
+    a0, a1 = max(vx - 2, 0), min(vx + 3, score.shape[1])
+    ring = score[b0:b1, a0:a1] >= thr
+    ring[max(vy - 1, 0) - b0 : vy + 2 - b0, max(vx - 1, 0) - a0 : vx + 2 - a0] = False
+    if not ring.any():
+        return None
     y0, y1 = max(vy - 1, 0), min(vy + 2, score.shape[0])
     x0, x1 = max(vx - 1, 0), min(vx + 2, score.shape[1])
     if int(np.count_nonzero(score[y0:y1, x0:x1] >= thr)) < 3:
-        return None  # a sharp peak: the common case, decided without labelling
+        return None
     _, labels = cv2.connectedComponents((score >= thr).astype(np.uint8), connectivity=8)
     ys, xs = np.nonzero(labels == labels[vy, vx])
     if max(int(np.ptp(ys)), int(np.ptp(xs))) < 3:

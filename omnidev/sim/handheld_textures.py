@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -245,7 +246,14 @@ def screen_content(
               (15, 15, 15), float(rng.uniform(20, 45) * unit))  # fmt: skip
     elif kind == "slide":
         k = str(rng.choice(SLIDE_KINDS))
-        img = np.ascontiguousarray(slide(k, width, height, 0.0, int(rng.integers(1 << 30))))
+        # omnidev.sim.screen_content's slides need 200 px each way: a smaller texture
+        # (a small screen far away) is drawn at 200 px and scaled down
+        up = max(1.0, 200 / min(width, height))
+        big = (math.ceil(width * up), math.ceil(height * up))
+        drawn: NDArray[Any] = slide(k, big[0], big[1], 0.0, int(rng.integers(1 << 30)))
+        if up > 1:
+            drawn = cv2.resize(drawn, (width, height), interpolation=cv2.INTER_AREA)
+        img = np.ascontiguousarray(drawn, np.uint8)
     elif kind == "photo":
         img = _photo(rng, width, height)
     elif kind == "saturated":
