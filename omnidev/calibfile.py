@@ -8,6 +8,7 @@ the kind and hands the file to the registered unwarper.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,6 +21,7 @@ from omnidev import registry
 from omnidev.atomic import atomic_path
 from omnidev.camera import CameraModel
 from omnidev.errors import CalibrationError
+from omnidev.inputfile import check_nesting, read_bytes, read_gzip
 
 UNWARPERS = "omnidev.unwarpers"
 
@@ -28,8 +30,14 @@ UNWARPERS = "omnidev.unwarpers"
 def open_storage(path: Path) -> Iterator[cv2.FileStorage]:
     """Open a FileStorage for reading; a clear error for a missing or unparsable file."""
     path = Path(path)
-    if not path.is_file():
-        raise CalibrationError(f"{path}: calibration file not found")
+    what = "calibration file"
+    if path.name.lower().endswith(".gz"):
+        data = read_gzip(path, what, error=CalibrationError)
+    else:
+        data = read_bytes(path, what, error=CalibrationError)  # a regular file, not huge
+    text = data.decode("latin-1")
+    check_nesting(text, path, what, CalibrationError)
+    _check_matrix_headers(text, path)
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:
@@ -42,6 +50,34 @@ def open_storage(path: Path) -> Iterator[cv2.FileStorage]:
         yield fs
     finally:
         fs.release()
+
+
+_DIM = re.compile(r"(?:\b(rows|cols)\s*:\s*|<(rows|cols)>\s*)([^\s,}<]*)")
+MAX_MATRIX_ELEMENTS = 1 << 26
+"""Largest matrix a calibration file may declare (64 Mi elements; a pano-table is far less)."""
+
+
+def _check_matrix_headers(text: str, path: Path) -> None:
+    """Refuse an opencv-matrix whose rows/cols are not plausible whole numbers *before*
+    cv2.FileStorage reads it (it allocates rows x cols first, whatever the data holds)."""
+    dims: list[int] = []
+    for m in _DIM.finditer(text):
+        raw = m.group(3)
+        try:
+            n = int(raw)
+        except ValueError:
+            raise CalibrationError(
+                f"{path}: matrix {m.group(1) or m.group(2)} {raw!r} is not a whole number"
+            ) from None
+        if not 0 <= n <= MAX_MATRIX_ELEMENTS:
+            raise CalibrationError(
+                f"{path}: matrix {m.group(1) or m.group(2)} {n} is not a plausible size"
+            )
+        dims.append(n)
+        if len(dims) % 2 == 0 and dims[-1] * dims[-2] > MAX_MATRIX_ELEMENTS:
+            raise CalibrationError(
+                f"{path}: a matrix of {dims[-2]}x{dims[-1]} is not a plausible size"
+            )
 
 
 def read_string(fs: cv2.FileStorage, path: Path, key: str) -> str:

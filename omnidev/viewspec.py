@@ -67,6 +67,10 @@ def _pair(spec: str, key: str, text: str) -> tuple[float, float]:
 
 def parse_view(spec: str) -> View:
     """Parse a view description (see the module docstring)."""
+    if len(spec) > 1000:
+        raise ViewSpecError(
+            f"view {spec[:40]!r}...: {len(spec)} characters; not a view description"
+        )
     kind, _, rest = spec.partition(":")
     kind = kind.strip().lower()
     if kind not in _KEYS:
@@ -103,6 +107,17 @@ def parse_view(spec: str) -> View:
             raise ViewSpecError(f"view {spec!r}: ccw must be 0 or 1, got {text!r}")
         return text in ("0", "no", "false")
 
+    if "elev" in kv:
+        lo, hi = _pair(spec, "elev", kv["elev"])
+        if not -90 <= lo < hi <= 90:
+            raise ViewSpecError(f"view {spec!r}: elev=LO:HI must have -90 <= LO < HI <= 90 degrees")
+    if "span" in kv and not 0 < _num(spec, "span", kv["span"]) <= 360:
+        raise ViewSpecError(f"view {spec!r}: span must be in (0, 360] degrees")
+    for key in ("start", "az", "pan", "tilt", "roll"):
+        if key in kv and not abs(_num(spec, key, kv[key])) <= 3600:
+            raise ViewSpecError(f"view {spec!r}: {key} must be within +-3600 degrees")
+    if kind == "top" and _num(spec, "z", kv["z"]) == 0:
+        raise ViewSpecError(f"view {spec!r}: z (the plane's height) must not be 0, the mirror's")
     try:
         if kind == "panorama":
             elev = _pair(spec, "elev", kv["elev"]) if "elev" in kv else None

@@ -3,18 +3,19 @@
 from __future__ import annotations
 
 import contextlib
-import os
-import tempfile
+import math
 from pathlib import Path
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from omnidev.atomic import check_output
+from omnidev.atomic import check_output, commit_temporary, make_temporary
 from omnidev.errors import OutputError
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
+MAX_FPS = 1000.0
+"""Highest output frame rate accepted (cv2.VideoWriter never returns for an infinite one)."""
 VIDEO_FOURCC = {".mp4": "mp4v", ".avi": "MJPG", ".mkv": "MJPG"}
 
 
@@ -39,12 +40,11 @@ class FrameWriter:
                 f"({', '.join(sorted(IMAGE_SUFFIXES))}) or a video ({', '.join(VIDEO_FOURCC)})"
             )
         check_output(self.path, force=force)
-        self.fps = fps if fps and fps > 0 else 25.0
-        fd, tmp = tempfile.mkstemp(
-            prefix=f".{self.path.stem}.", suffix=self.path.suffix, dir=self.path.parent or "."
-        )
-        os.close(fd)
-        self.tmp = Path(tmp)
+        if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+            raise OutputError(f"{self.path}: frame rate {fps:g} must be in (0, {MAX_FPS}] fps")
+        self.fps = fps
+        self.force = force
+        self.tmp = make_temporary(self.path)
         self.frames = 0
         self._video: cv2.VideoWriter | None = None
 
@@ -80,8 +80,7 @@ class FrameWriter:
         if self.frames == 0:
             self.abort()
             raise OutputError(f"{self.path}: no frames to write")
-        os.chmod(self.tmp, 0o644)
-        os.replace(self.tmp, self.path)
+        commit_temporary(self.tmp, self.path, force=self.force)
 
     def abort(self) -> None:
         if self._video is not None:

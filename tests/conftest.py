@@ -32,3 +32,22 @@ def realdata() -> Path:
     if not REALDATA.is_dir():
         pytest.skip(f"real data not available: {REALDATA} is absent (it comes with ../shared)")
     return REALDATA
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--fuzz-full",
+        action="store_true",
+        help="tests/fuzz: draw many more random mutations per input format",
+    )
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:  # noqa: ARG001
+    """The fuzz suite's counts by command (tests/fuzz), when it ran."""
+    import sys
+
+    mod = sys.modules.get("tests.fuzz.test_fuzz")
+    text = mod.pytest_terminal_summary_text() if mod is not None else ""
+    if text:
+        terminalreporter.section("fuzz suite: outcomes by command")
+        terminalreporter.write_line(text)

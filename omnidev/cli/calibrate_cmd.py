@@ -11,12 +11,17 @@ import cv2
 import numpy as np
 
 from omnidev.atomic import check_output
+from omnidev.budget import check_pixels
 from omnidev.cli.options import parse_floats, parse_size
 from omnidev.errors import CalibrationError
+from omnidev.imagefile import read_image
 from omnidev.panotable.camfile import save_table
 from omnidev.panotable.center import detect_omni_circles
 from omnidev.panotable.landmarks import read_landmarks_csv
 from omnidev.panotable.table import calibrate
+
+TABLE_BYTES_PER_ENTRY = 160.0
+"""Peak memory of filling a pano-mapping table and plotting it, bytes per entry (upper bound)."""
 
 
 def register(sub: Any) -> None:
@@ -86,15 +91,18 @@ def run(args: argparse.Namespace) -> int:
     mirror = np.array(parse_floats(args.mirror_center, 3, "--mirror-center"))
     image = None
     if args.image is not None:
-        image = cv2.imread(str(args.image), cv2.IMREAD_COLOR)
-        if image is None:
-            raise CalibrationError(f"{args.image}: cannot read image")
+        image = read_image(args.image, "omni-image", error=CalibrationError)
     if image is not None:
         size = (image.shape[1], image.shape[0])
     elif args.image_size:
         size = parse_size(args.image_size, "--image-size")
     else:
         raise CalibrationError("give --image or --image-size")
+    if args.cutoff_radius is not None and not 0 <= args.cutoff_radius < math.hypot(*size):
+        raise CalibrationError(
+            f"--cutoff-radius {args.cutoff_radius:g}: give pixels >= 0 within the "
+            f"{size[0]}x{size[1]} image"
+        )
     cutoff = args.cutoff_radius or 0.0
     disc = None
     if args.image_center is None or args.image_center == "detect":
@@ -112,12 +120,25 @@ def run(args: argparse.Namespace) -> int:
         )
     else:
         cu, cv = parse_floats(args.image_center, 2, "--image-center")
+        if not (-0.5 <= cu <= size[0] - 0.5 and -0.5 <= cv <= size[1] - 0.5):
+            raise CalibrationError(
+                f"--image-center {args.image_center}: outside the {size[0]}x{size[1]} image"
+            )
         center = (cu, cv)
     rho_range = None
     if args.elevation_range:
         lo, hi = parse_floats(args.elevation_range, 2, "--elevation-range")
+        if not -90 < lo < hi < 90:
+            raise CalibrationError(
+                f"--elevation-range {args.elevation_range}: give LO,HI degrees with "
+                "-90 < LO < HI < 90"
+            )
         rho_range = (math.radians(lo), math.radians(hi))
-    table_size = parse_size(args.table_size, "--table-size") if args.table_size else None
+    table_size = None
+    if args.table_size:
+        table_size = parse_size(args.table_size, "--table-size", minimum=2, maximum=32768)
+    tw, th = table_size or size
+    check_pixels(tw, th, TABLE_BYTES_PER_ENTRY, f"a {tw}x{th} pano-mapping table")
     calib = calibrate(
         lm.uv,
         lm.xyz,
@@ -175,7 +196,14 @@ def _register_screen(csub: Any) -> None:
     sc.add_argument("--dots", type=Path, help="captured image of the dot-matrix pattern")
     sc.add_argument("--n", type=int, default=9, help="dots per row and column (default 9)")
     sc.add_argument("--screen", metavar="WxH", help="screen resolution (default 1920x1080)")
-    sc.add_argument("--method", default=None, help="image->screen method (default radial)")
+    from omnidev.screencal.calibration import DEFAULT_METHOD, METHODS
+
+    sc.add_argument(
+        "--method",
+        default=None,
+        metavar="|".join(METHODS),
+        help=f"image -> screen method: {', '.join(METHODS)} (default {DEFAULT_METHOD})",
+    )
     sc.add_argument("-o", "--output", type=Path, help="calibration file (.yml or .yml.gz)")
     sc.add_argument("--plot", type=Path, help="PNG of the error vectors (needs --truth)")
     sc.add_argument(
@@ -207,10 +235,7 @@ def _write_png(path: Path, image: np.ndarray[Any, Any], force: bool) -> None:
 
 
 def _read_grey(path: Path, what: str) -> np.ndarray[Any, Any]:
-    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if img is None:
-        raise CalibrationError(f"{path}: cannot read the {what} image")
-    return np.asarray(img, np.uint8)
+    return read_image(path, f"{what} image", grey=True, error=CalibrationError)
 
 
 def _capture(args: argparse.Namespace, size: tuple[int, int]) -> list[np.ndarray[Any, Any]]:
@@ -259,12 +284,15 @@ def run_screen(args: argparse.Namespace) -> int:
         fit_calibration,
     )
 
-    size = parse_size(args.screen, "--screen") if args.screen else (1920, 1080)
-    method = args.method or DEFAULT_METHOD
+    size = parse_size(args.screen, "--screen", maximum=16384) if args.screen else (1920, 1080)
+    method = DEFAULT_METHOD if args.method is None else args.method
     if method not in METHODS:
         raise CalibrationError(f"--method {method!r}: choose from {', '.join(METHODS)}")
-    if args.n < 2:
-        raise CalibrationError(f"--n {args.n}: at least 2")
+    if not 2 <= args.n <= 64:
+        raise CalibrationError(f"--n {args.n}: give 2..64 dots per row")
+    if args.settle < 0 or args.average < 1:
+        raise CalibrationError("--settle must be >= 0 and --average >= 1 frames")
+    check_pixels(size[0], size[1], 12, f"patterns of a {size[0]}x{size[1]} screen")
     if args.write_patterns is not None:
         from omnidev.atomic import atomic_dir
         from omnidev.screencal.patterns import black_pattern, dot_pattern, white_pattern

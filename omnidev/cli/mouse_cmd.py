@@ -149,6 +149,13 @@ def run_landmarks(args: argparse.Namespace) -> int:
 
     w, h = _pair(args.screen_mm, "--screen-mm")
     mx, my = _pair(args.margin_mm, "--margin-mm")
+    if not (50 <= w <= 5000 and 50 <= h <= 5000):
+        raise OmnidevError(f"--screen-mm {args.screen_mm}: give 50..5000 mm per side")
+    if not (0 <= mx <= 500 and 0 <= my <= 500):
+        raise OmnidevError(f"--margin-mm {args.margin_mm}: give 0..500 mm")
+    for flag, v in (("--circle-mm", args.circle_mm), ("--square-mm", args.square_mm)):
+        if not 1 <= v <= 300:
+            raise OmnidevError(f"{flag} {v:g}: give 1..300 mm")
     if args.dpi < 72 or args.dpi > 1200:
         raise OmnidevError(f"--dpi {args.dpi:g}: use 72..1200")
     layout = LandmarkLayout.symmetric(

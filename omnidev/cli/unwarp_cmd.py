@@ -15,14 +15,16 @@ from typing import Any
 
 from tqdm import tqdm
 
+from omnidev.atomic import check_output
+from omnidev.budget import check_memory
 from omnidev.calibfile import load_camera
-from omnidev.camera import Remapper, build_maps
+from omnidev.camera import Remapper, build_maps, map_bytes_per_pixel
 from omnidev.cli.options import key_values
 from omnidev.errors import OmnidevError, OutputError
 from omnidev.rig import load_rig
 from omnidev.sources import open_source
 from omnidev.viewspec import parse_view
-from omnidev.writers import FrameWriter
+from omnidev.writers import MAX_FPS, VIDEO_FOURCC, FrameWriter, is_image_path
 
 
 def register(sub: Any) -> None:
@@ -75,8 +77,22 @@ def run(args: argparse.Namespace) -> int:
         uri = uri or rig.source_uri
     if not uri:
         raise OmnidevError("give an input source (path or URI)")
+    if args.frames is not None and args.frames < 1:
+        raise OmnidevError(f"--frames {args.frames}: at least 1")
+    if args.fps is not None and not 0 < args.fps <= MAX_FPS:
+        raise OmnidevError(f"--fps {args.fps:g}: give frames per second in (0, {MAX_FPS:g}]")
+    for out in args.output:
+        check_output(out, force=args.force)
+        if not (is_image_path(out) or out.suffix.lower() in VIDEO_FOURCC):
+            FrameWriter(out, force=args.force)  # the one-line "unknown output type" error
+    if len({o.resolve() for o in args.output}) != len(args.output):
+        raise OutputError("two views write the same output file")
     views = [parse_view(v) for v in args.view]
     camera = load_camera(calib_path, key_values(args.camera_option, "--camera-option"))
+    check_memory(
+        sum(v.width * v.height * (map_bytes_per_pixel(camera) + 6.0) for v in views),
+        "the maps of " + ", ".join(f"view {s}" for s in args.view),
+    )
     try:
         remappers = [
             Remapper(build_maps(camera, v), interpolation=args.interpolation) for v in views
@@ -85,14 +101,10 @@ def run(args: argparse.Namespace) -> int:
         raise OmnidevError(f"{calib_path}: {exc}") from None
     with open_source(uri) as source:
         fps = args.fps or source.fps or 25.0
-        writers = [FrameWriter(o, fps=fps, force=args.force) for o in args.output]
-        if len(set(w.path.resolve() for w in writers)) != len(writers):
-            for w in writers:
-                w.abort()
-            raise OutputError("two views write the same output file")
         with contextlib.ExitStack() as stack:
-            for w in writers:
-                stack.enter_context(w)
+            writers = [
+                stack.enter_context(FrameWriter(o, fps=fps, force=args.force)) for o in args.output
+            ]
             total = source.frame_count
             if args.frames is not None:
                 total = min(total, args.frames) if total else args.frames

@@ -36,6 +36,10 @@ BoolArray = NDArray[np.bool_]
 class NonSvpCameraModel:
     """A :class:`~omnidev.nonsvp.model.NonSvpCamera` as an omnidev camera model."""
 
+    map_bytes_per_pixel = 100.0
+    """Peak bytes per output pixel of its maps (measured 59-80; see
+    :func:`omnidev.camera.map_bytes_per_pixel`)."""
+
     def __init__(self, camera: NonSvpCamera) -> None:
         self.camera = camera
 

@@ -393,7 +393,11 @@ def parse_points_csv(text: str, *, source: str) -> tuple[FloatArray, FloatArray]
     """
     uv: list[tuple[float, float]] = []
     xy: list[tuple[float, float]] = []
-    for row_no, row in enumerate(csv.reader(io.StringIO(text)), start=1):
+    try:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:
+        raise CalibrationError(f"{source}: not a CSV file ({exc})") from None
+    for row_no, row in enumerate(rows, start=1):
         cells = [c.strip() for c in row]
         if not cells or all(not c for c in cells) or cells[0].startswith("#"):
             continue

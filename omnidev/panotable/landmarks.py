@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from omnidev.errors import CalibrationError
+from omnidev.inputfile import read_text
 
 COLUMNS = ("u", "v", "X", "Y", "Z")
 
@@ -27,13 +28,12 @@ class Landmarks:
 def read_landmarks_csv(path: Path) -> Landmarks:
     """Read a landmark CSV; every error names the file and the line (and column)."""
     path = Path(path)
+    text = read_text(path, "landmark file", error=CalibrationError)
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise CalibrationError(f"{path}: landmark file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read landmark file ({exc})") from None
-    reader = csv.reader(text.splitlines())
+        lines = list(csv.reader(text.splitlines()))
+    except csv.Error as exc:
+        raise CalibrationError(f"{path}: not a CSV file ({exc})") from None
+    reader = iter(lines)
     header = next(reader, None)
     if header is None:
         raise CalibrationError(f"{path}: empty file; expected a header line u,v,X,Y,Z")

@@ -7,11 +7,9 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import cv2
-import numpy as np
-
 from omnidev.errors import SourceError
 from omnidev.frame import Frame
+from omnidev.imagefile import read_image
 from omnidev.sources import IMAGE_SUFFIXES, SourceBase, check_options
 
 
@@ -36,10 +34,8 @@ class ImageSource(SourceBase):
 
     def __iter__(self) -> Iterator[Frame]:
         for index, f in enumerate(self.files):
-            image = cv2.imread(str(f), cv2.IMREAD_COLOR)
-            if image is None:
-                raise SourceError(f"{self.name}: cannot read image {f} (frame {index})")
-            yield Frame(np.asarray(image, np.uint8), time.monotonic_ns(), index)
+            image = read_image(f, f"image (frame {index} of {self.name})", error=SourceError)
+            yield Frame(image, time.monotonic_ns(), index)
 
 
 def open_images(rest: str, options: dict[str, str]) -> ImageSource:

@@ -9,9 +9,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from omnidev.errors import SourceError
+from omnidev.budget import check_pixels
+from omnidev.errors import OmnidevError, SourceError
 from omnidev.frame import Frame
 from omnidev.sources import SourceBase, check_options
+
+MAX_RATE = 1000.0
+"""Highest ``rate`` accepted, frames per second."""
 
 
 class VideoSource(SourceBase):
@@ -32,10 +36,19 @@ class VideoSource(SourceBase):
         self._cap = cv2.VideoCapture(str(self.path))
         if not self._cap.isOpened():
             raise SourceError(f"{self.name}: OpenCV cannot read this file as a video")
+        w, h = (
+            int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
+            int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT)),
+        )
+        try:
+            check_pixels(w, h, 12, f"{self.name}: decoding {w}x{h} frames")
+        except OmnidevError:
+            self._cap.release()
+            raise
         n = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT))
         self.frame_count = n if n > 0 else None
         fps = float(self._cap.get(cv2.CAP_PROP_FPS))
-        self.fps = fps if fps > 0 else None
+        self.fps = fps if 0 < fps <= MAX_RATE else None
         if rate is not None:
             self.fps = rate
         self._period_ns = round(1e9 / rate) if rate else 0
@@ -94,6 +107,8 @@ def open_video(rest: str, options: dict[str, str]) -> VideoSource:
             rate = None
         finally:
             source.close()
-        if rate is None or not rate > 0 or rate != rate:
-            raise SourceError(f"{uri}: option rate must be 'realtime' or frames per second > 0")
+        if rate is None or not 0 < rate <= MAX_RATE:
+            raise SourceError(
+                f"{uri}: option rate must be 'realtime' or frames per second in (0, {MAX_RATE:g}]"
+            )
     return VideoSource(rest, loop=loop in ("1", "yes", "true"), rate=rate)
