@@ -77,7 +77,7 @@ def max_memory() -> int:
 def resident_bytes() -> int:
     """This process's resident memory now, bytes (0 where /proc is absent)."""
     try:
-        with open("/proc/self/statm", encoding="ascii") as fh:
+        with open("/proc/self/statm", "rb") as fh:
             return int(fh.read().split()[1]) * resource.getpagesize()
     except (OSError, ValueError, IndexError):
         return 0

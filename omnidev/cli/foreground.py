@@ -19,7 +19,14 @@ from omnidev.errors import OmnidevError
 
 def add_pointer_arguments(p: argparse.ArgumentParser) -> None:
     """The options every foreground pointer command has: sink, screen, filter, buttons."""
-    p.add_argument("--sink", default="record", help="sink plugin (uinput, xtest, hidg, record)")
+    p.add_argument(
+        "--sink",
+        default="record",
+        metavar="NAME",
+        help="where the pointer goes: uinput (the kernel pointer), xtest (an X server, "
+        "--sink-option display=:0), hidg (a USB gadget), record (JSON lines to "
+        "--sink-option path=FILE; default: record to standard output); see docs/sinks.md",
+    )
     p.add_argument(
         "--sink-option", action="append", default=[], metavar="KEY=VALUE", help="sink option"
     )
@@ -58,6 +65,8 @@ def run_foreground(
     from omnidev.sources import open_source
 
     options = sink_options(args.sink_option)
+    if args.sink == "record" and "path" not in options:
+        options["path"] = "-"  # the default: the pointer's events on standard output
     with open_source(args.source) as probe:  # a clear error now, not a retry loop
         ends = probe.frame_count is not None  # a file that is not looped
         # a file read as fast as it decodes: keep every frame (a camera: drop old ones)

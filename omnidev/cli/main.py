@@ -113,22 +113,23 @@ def _on_sigterm(signum: int, frame: FrameType | None) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     from omnidev.budget import parse_memory, set_max_memory
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
     old_term: Any = None
     if threading.current_thread() is threading.main_thread():
         old_term = signal.signal(signal.SIGTERM, _on_sigterm)
+    command = "(starting)"
     try:
+        args = build_parser().parse_args(argv)
+        command = args.command
         set_max_memory(parse_memory(args.max_memory) if args.max_memory else None)
         return int(args.func(args))
     except OmnidevError as exc:
-        print(f"omnidev {args.command}: error: {exc}", file=sys.stderr)
+        print(f"omnidev {command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"omnidev {args.command}: interrupted", file=sys.stderr)
+        print(f"omnidev {command}: interrupted", file=sys.stderr)
         return 130
     except Terminated as exc:
-        print(f"omnidev {args.command}: terminated (signal {exc.signum})", file=sys.stderr)
+        print(f"omnidev {command}: terminated (signal {exc.signum})", file=sys.stderr)
         return 128 + exc.signum
     finally:
         set_max_memory(None)

@@ -20,7 +20,7 @@ def register(sub: Any) -> None:
     p = sub.add_parser(
         "mouse",
         help="run the camera mouse (hand-held webcam aimed at a monitor) into a pointer sink",
-        description=__doc__.splitlines()[0] if __doc__ else None,
+        description=__doc__.splitlines()[0].replace("``", "") if __doc__ else None,
     )
     p.add_argument("source", help="source URI or path (v4l2:/dev/video0, a video file, ...)")
     p.add_argument("--layout", required=True, type=Path, help="landmark layout (JSON or TOML)")

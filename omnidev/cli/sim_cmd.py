@@ -142,6 +142,13 @@ def _check_sim_args(args: argparse.Namespace) -> None:
     k1 = getattr(args, "k1", None)
     if k1 is not None and not -1 <= k1 <= 1:
         raise OmnidevError(f"--k1 {k1:g}: give a radial distortion in [-1, 1]")
+    pattern = getattr(args, "pattern", None)
+    if isinstance(pattern, str):
+        import re
+
+        m = re.search(r"(\d+)\s*x\s*(\d+)", pattern)
+        if m and max(int(m.group(1)), int(m.group(2))) > 200:
+            raise OmnidevError(f"--pattern {pattern}: at most 200 squares per side")
     for name in ("T", "angles"):
         text = getattr(args, name, None)
         if isinstance(text, str):

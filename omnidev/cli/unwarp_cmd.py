@@ -23,7 +23,7 @@ from omnidev.cli.options import key_values
 from omnidev.errors import OmnidevError, OutputError
 from omnidev.rig import load_rig
 from omnidev.sources import open_source
-from omnidev.viewspec import parse_view
+from omnidev.viewspec import VIEW_HELP, parse_view
 from omnidev.writers import MAX_FPS, VIDEO_FOURCC, FrameWriter, is_image_path
 
 
@@ -32,9 +32,12 @@ def register(sub: Any) -> None:
         "unwarp",
         help="unwarp an image, video or live source into views",
         description="Unwarp an omni-image, video or live source into one or more views. "
-        "Pair each --view with an -o output, in order. View syntax: "
-        "panorama:WxH[,elev=LO:HI] | cylinder:WxH,d=D,z=LO:HI | plane:WxH,d=D,w=W,z=LO:HI"
-        "[,az=DEG] | perspective:WxH[,fov=DEG,pan=DEG,tilt=DEG,roll=DEG] | top:WxH,x=X,y=Y,z=Z",
+        "Pair each --view with an -o output, in order.",
+        epilog=VIEW_HELP
+        + "\ninputs: an image, a video file, images:GLOB, video:PATH[?loop=1&rate=FPS], "
+        "v4l2:/dev/videoN[?width=W&height=H&fps=F], usb:VID:PID[:SERIAL] "
+        "(quote a URI with & for the shell)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("input", nargs="?", help="source URI or path (omit with --rig)")
     p.add_argument("--camera", type=Path, help="calibration file (any registered kind)")
@@ -46,7 +49,13 @@ def register(sub: Any) -> None:
         metavar="KEY=VALUE",
         help="unwarper option, e.g. lookup=nearest for a pano-table",
     )
-    p.add_argument("--view", action="append", required=True, help="view description")
+    p.add_argument(
+        "--view",
+        action="append",
+        required=True,
+        metavar="KIND:WxH[,KEY=V...]",
+        help="a view (kinds and keys below); repeat with one -o each",
+    )
     p.add_argument(
         "-o",
         "--output",
@@ -56,8 +65,13 @@ def register(sub: Any) -> None:
         help="output image or video, one per --view",
     )
     p.add_argument("--interpolation", choices=("linear", "nearest", "cubic"), default="linear")
-    p.add_argument("--frames", type=int, help="stop after this many frames")
-    p.add_argument("--fps", type=float, help="output video frame rate (default: the source's)")
+    p.add_argument("--frames", type=int, help="stop after this many frames (at least 1)")
+    p.add_argument(
+        "--fps",
+        type=float,
+        help="output video frame rate, frames per second, (0, 1000] (default: the source's, "
+        "else 25)",
+    )
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.set_defaults(func=run)
 

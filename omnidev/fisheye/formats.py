@@ -576,6 +576,8 @@ def _matrix(value: Any, source: str, key: str) -> FloatArray:
         raise _fail(source, f"key {key!r} is not a matrix")
     if not np.all(np.isfinite(arr)):
         raise _fail(source, f"key {key!r} has non-finite values")
+    if arr.size and float(np.max(np.abs(arr))) > MAX_PARAMETER:
+        raise _fail(source, f"key {key!r} has values beyond {MAX_PARAMETER:g}")
     return arr
 
 
@@ -690,9 +692,12 @@ def write_opencv(
 
 def read_text(path: Path) -> str:
     """The file's text; a missing or binary file is a CalibrationError naming it."""
+    from omnidev.inputfile import check_nesting
     from omnidev.inputfile import read_text as read_input
 
-    return read_input(Path(path), "calibration file", error=CalibrationError)
+    text = read_input(Path(path), "calibration file", error=CalibrationError)
+    check_nesting(text, path, "calibration file", CalibrationError)
+    return text
 
 
 def read_yaml(path: Path) -> Any:

@@ -413,6 +413,8 @@ def parse_points_csv(text: str, *, source: str) -> tuple[FloatArray, FloatArray]
             raise CalibrationError(f"{source}: row {row_no}: not a number in {row!r}") from None
         if not all(math.isfinite(v) for v in vals):
             raise CalibrationError(f"{source}: row {row_no}: non-finite value in {row!r}")
+        if not all(abs(v) <= 1e6 for v in vals):
+            raise CalibrationError(f"{source}: row {row_no}: a value beyond 1e6 in {row!r}")
         uv.append((vals[0], vals[1]))
         xy.append((vals[2], vals[3]))
     if not uv:

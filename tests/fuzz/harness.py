@@ -74,7 +74,7 @@ class Case:
     argv: Sequence[str]
     files: dict[str, FileSpec] = field(default_factory=dict)
     expect: Literal["refuse", "any"] = "refuse"
-    timeout: float = 30.0
+    timeout: float = 20.0
     env: dict[str, str] = field(default_factory=dict)
 
     @property

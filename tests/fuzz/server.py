@@ -30,6 +30,12 @@ import time
 
 
 def _preload() -> None:
+    import codecs
+
+    # the children may run as user nobody, who cannot read this interpreter's lazily
+    # imported codecs when it lives under /root: load them now
+    for name in ("ascii", "utf-8", "utf-8-sig", "latin-1", "utf-16", "idna"):
+        codecs.lookup(name)
     import cv2  # noqa: F401
     import matplotlib
 
