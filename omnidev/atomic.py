@@ -81,7 +81,7 @@ def remove_stale_temporaries(path: Path) -> list[Path]:
     pattern = re.compile(
         re.escape(f".{stem}.{TEMP_TAG}") + r"(\d+)-[A-Za-z0-9_]+" + re.escape(suffix) + "$"
     )
-    removed = []
+    removed: list[Path] = []
     try:
         names = os.listdir(parent)
     except OSError:

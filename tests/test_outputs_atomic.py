@@ -1,6 +1,9 @@
-"""Outputs under signals and races: no temporary survives SIGTERM/SIGINT at any moment of a
-long unwarp (from its first progress report on), two runs writing one new output without --force: exactly one succeeds, and a
-temporary left by a killed run is removed by the next run writing that output."""
+"""Outputs under signals and races.
+
+No temporary survives SIGTERM/SIGINT at any moment of a long unwarp (from its first
+progress report on); of two runs writing one new output without --force exactly one
+succeeds; a temporary left by a killed run is removed by the next run writing that output.
+"""
 
 from __future__ import annotations
 

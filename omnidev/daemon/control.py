@@ -437,10 +437,9 @@ def request(path: Path, cmd: str, timeout: float = 2.0, **args: Any) -> dict[str
             raise ControlError(f"{path}: cannot connect: {exc.strerror or exc}") from None
         data = b""
         try:
-            try:
+            # a server refusing the connection has replied and closed: read that reply
+            with contextlib.suppress(BrokenPipeError, ConnectionResetError):
                 sock.sendall(payload)
-            except (BrokenPipeError, ConnectionResetError):
-                pass  # a server refusing the connection has replied and closed: read that
             while b"\n" not in data:
                 chunk = sock.recv(65536)
                 if not chunk:
