@@ -28,6 +28,10 @@ ENV = "OMNIDEV_MAX_MEMORY"
 _UNITS = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 
 _limit: int | None = None
+_start: int | None = None  # resident bytes when the command started (see start_command)
+HOST_ALLOWANCE = 200 << 20
+"""What a command started inside a larger process (a test run, a notebook) is charged for
+the memory that process already held: the interpreter's own share, not all of it."""
 
 
 class MemoryLimitError(OmnidevError):
@@ -64,6 +68,20 @@ def set_max_memory(limit: int | None) -> None:
     _limit = limit
 
 
+def start_command() -> None:
+    """Mark the start of a command: memory held before it counts as at most HOST_ALLOWANCE."""
+    global _start
+    _start = resident_bytes()
+
+
+def in_use() -> int:
+    """Memory charged to the running command now, bytes."""
+    now = resident_bytes()
+    if _start is None:
+        return now
+    return max(now - _start, 0) + min(_start, HOST_ALLOWANCE)
+
+
 def max_memory() -> int:
     """The limit in force, bytes (0: none)."""
     if _limit is not None:
@@ -92,7 +110,7 @@ def check_memory(nbytes: float, what: str) -> None:
     limit = max_memory()
     if limit <= 0:
         return
-    now = resident_bytes()
+    now = in_use()
     if now + nbytes > limit:
         raise MemoryLimitError(
             f"{what} needs about {format_bytes(nbytes)} of memory; with the "

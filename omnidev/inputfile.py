@@ -17,7 +17,7 @@ daemon configuration, ...), so the CLI prints them as one line.
 ...     read_text(p, "rig file")
 ... except OmnidevError as exc:
 ...     print(str(exc).split(": ", 1)[1])
-line 1, column 12: not UTF-8 text (byte 0xe9); save the rig file as UTF-8
+cannot read the rig file: line 1, column 12 is not UTF-8 text (byte 0xe9); save it as UTF-8
 """
 
 from __future__ import annotations
@@ -115,8 +115,8 @@ def decode_utf8(data: bytes, path: Path | str, what: str, error: type[OmnidevErr
         line = before.count(b"\n") + 1
         column = exc.start - (before.rfind(b"\n") + 1 + start) + 1
         raise error(
-            f"{path}: line {line}, column {column}: not UTF-8 text "
-            f"(byte 0x{data[exc.start]:02x}); save the {what} as UTF-8"
+            f"{path}: cannot read the {what}: line {line}, column {column} is not UTF-8 text "
+            f"(byte 0x{data[exc.start]:02x}); save it as UTF-8"
         ) from None
 
 

@@ -111,7 +111,7 @@ def _on_sigterm(signum: int, frame: FrameType | None) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from omnidev.budget import parse_memory, set_max_memory
+    from omnidev.budget import parse_memory, set_max_memory, start_command
 
     old_term: Any = None
     if threading.current_thread() is threading.main_thread():
@@ -121,6 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         command = args.command
         set_max_memory(parse_memory(args.max_memory) if args.max_memory else None)
+        start_command()
         return int(args.func(args))
     except OmnidevError as exc:
         print(f"omnidev {command}: error: {exc}", file=sys.stderr)

@@ -181,7 +181,12 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
         raise fail("tracker.calibration", f"file {calibration} not found")
     tracker_options = get("tracker", "options", dict, {})
     sink = get("sink", "name", str)
-    sink_options = get("sink", "options", dict, {})
+    sink_options = dict(get("sink", "options", dict, {}))
+    sink_path = sink_options.get("path")
+    if isinstance(sink_path, str) and sink_path not in ("", "-") and "\0" not in sink_path:
+        # one rule for every path a configuration names: relative to the file
+        p = Path(sink_path)
+        sink_options["path"] = str(p if p.is_absolute() else path.parent / p)
 
     kind = get("filter", "kind", str, "one-euro")
     if kind not in ("one-euro", "none"):

@@ -95,7 +95,7 @@ def resolve_uri(uri: str, base: Path) -> str:
     is relative to the file that names it).
 
     >>> resolve_uri("video:clips/a.avi?loop=1", Path("/etc/omnidev"))
-    '/etc/omnidev/clips/a.avi?loop=1'
+    'video:/etc/omnidev/clips/a.avi?loop=1'
     >>> resolve_uri("v4l2:/dev/video0", Path("/etc/omnidev"))
     'v4l2:/dev/video0'
     >>> resolve_uri("omni.png", Path("/data"))

@@ -34,7 +34,12 @@ class ImageSource(SourceBase):
 
     def __iter__(self) -> Iterator[Frame]:
         for index, f in enumerate(self.files):
-            image = read_image(f, f"image (frame {index} of {self.name})", error=SourceError)
+            try:
+                image = read_image(f, "image", error=SourceError)
+            except SourceError as exc:
+                raise SourceError(
+                    f"{self.name}: cannot read image {f} (frame {index}): {exc}"
+                ) from None
             yield Frame(image, time.monotonic_ns(), index)
 
 

@@ -44,7 +44,9 @@ def parse_v4l2_options(uri: str, options: dict[str, str]) -> dict[str, int | flo
                 value = 0
             limit = 64 if key == "buffers" else 16384
             if not 0 < value <= limit:
-                raise SourceError(f"{uri}: {key}={options[key]!r} must be an integer 1..{limit}")
+                raise SourceError(
+                    f"{uri}: {key}={options[key]!r} must be a positive integer up to {limit}"
+                )
             out[key] = value
     if "fps" in options:
         try:
