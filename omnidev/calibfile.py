@@ -8,6 +8,7 @@ the kind and hands the file to the registered unwarper.
 
 from __future__ import annotations
 
+import gzip
 import re
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -111,8 +112,44 @@ def read_mat(fs: cv2.FileStorage, path: Path, key: str) -> np.ndarray[Any, Any]:
     return arr
 
 
+_KIND_PATTERNS = (
+    re.compile(rb"^kind:[ \t]*\"?([A-Za-z0-9_.-]+)\"?[ \t]*\r?$", re.M),  # YAML
+    re.compile(rb"<kind>\s*\"?([A-Za-z0-9_.-]+)\"?\s*</kind>"),  # XML
+    re.compile(rb"^\s*\"kind\"\s*:\s*\"([A-Za-z0-9_.-]+)\"", re.M),  # JSON
+)
+PEEK_BYTES = 4096
+
+
+def _peek_kind(path: Path) -> str | None:
+    """The top-level ``kind`` from the file's first bytes (written first), or None."""
+    try:
+        if path.name.endswith(".gz"):
+            with gzip.open(path, "rb") as fh:
+                head = fh.read(PEEK_BYTES)
+        else:
+            with path.open("rb") as fh:
+                head = fh.read(PEEK_BYTES)
+    except (OSError, EOFError, gzip.BadGzipFile):
+        return None
+    for pat in _KIND_PATTERNS:
+        m = pat.search(head)
+        if m is not None:
+            return m.group(1).decode("ascii")
+    return None
+
+
 def read_kind(path: Path) -> str:
-    """The ``kind`` of a calibration file."""
+    """The ``kind`` of a calibration file.
+
+    Read from the file's first bytes when it is there (omnidev writes it
+    first), so that :func:`load_camera` does not parse a large file twice;
+    otherwise by parsing the file.
+    """
+    path = Path(path)
+    if path.is_file():
+        kind = _peek_kind(path)
+        if kind is not None:
+            return kind
     with open_storage(path) as fs:
         return read_string(fs, path, "kind")
 

@@ -205,6 +205,114 @@ class PlaneView:
         return pts
 
 
+def plane_axes(
+    center: tuple[float, float, float], normal: tuple[float, float, float], roll_deg: float = 0.0
+) -> FloatArray:
+    """3x3 matrix whose columns are a plane view's right, down and forward axes (camera frame).
+
+    Forward is the plane's normal turned away from the viewpoint (the direction the viewer
+    looks through the plane). Down is the world's -z projected onto the plane, so vertical
+    lines on the plane are vertical in the view; on a horizontal plane (normal within 1e-9
+    of vertical) it is -y, so a floor seen from above shows +x right and +y up, as
+    :class:`TopView`, and a ceiling seen from below +y up and +x on the left (not
+    mirror-imaged, as the viewer sees it). Right = forward x up. A positive ``roll_deg``
+    turns the image clockwise as seen by the viewer (as :class:`Perspective`).
+
+    Raises ValueError when the normal is zero or the plane passes through the viewpoint.
+    """
+    c = np.asarray(center, np.float64)
+    n = np.asarray(normal, np.float64)
+    if (
+        n.shape != (3,)
+        or c.shape != (3,)
+        or not (np.all(np.isfinite(n)) and np.all(np.isfinite(c)))
+    ):
+        raise ValueError("plane center and normal must be three finite numbers each")
+    norm = float(np.linalg.norm(n))
+    if norm == 0:
+        raise ValueError("plane normal must not be zero")
+    n = n / norm
+    side = float(c @ n)
+    if abs(side) <= 1e-9 * max(1.0, float(np.linalg.norm(c))):
+        raise ValueError("the plane passes through the viewpoint: nothing on it can be seen")
+    fwd = n if side > 0 else -n
+    up = np.array([0.0, 0.0, 1.0]) - fwd[2] * fwd
+    if float(np.linalg.norm(up)) < 1e-9:
+        up = np.array([0.0, 1.0, 0.0]) - fwd[1] * fwd
+    up /= np.linalg.norm(up)
+    right = np.cross(fwd, up)
+    down = -up
+    r = math.radians(roll_deg)
+    right_r = math.cos(r) * right - math.sin(r) * down
+    down_r = math.sin(r) * right + math.cos(r) * down
+    return np.stack([right_r, down_r, fwd], axis=1)
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Perspective view of a rectangle on any plane: position, normal, size (issue 15).
+
+    The rectangle is centred at ``center`` (camera frame, the calibration's unit), lies in
+    the plane with normal ``normal`` (either sign), and spans ``plane_width`` along the
+    view's right axis and ``plane_height`` along its down axis (:func:`plane_axes`:
+    upright, not mirror-imaged, as seen from the viewpoint; ``roll_deg`` turns it). Output
+    pixel (k, l) shows the plane point ``center + s_k right + t_l down`` with s_k, t_l the
+    cell centres of [-w/2, w/2] and [-h/2, h/2].
+
+    Equivalents: a vertical plane facing the viewpoint is :class:`PlaneView`
+    (``center = (d cos az, d sin az, (z_bottom + z_top) / 2)``, ``normal = (cos az, sin az,
+    0)``, height z_top - z_bottom); a horizontal plane below is :class:`TopView`
+    (``normal = (0, 0, 1)``, ``center = (cx, cy, z)``). For a central camera (fisheye,
+    pano-table) only the rays matter, so a plane view equals a :class:`Perspective` with
+    the same axes up to a homography; for a non-central camera (``nonsvp-hyper``) the
+    distance matters too.
+
+    Args:
+        width, height: output size in pixels.
+        center: (x, y, z) of the rectangle's centre.
+        normal: (x, y, z) of the plane's normal (need not be unit length).
+        plane_width, plane_height: size of the rectangle (> 0).
+        roll_deg: rotation of the rectangle in its plane, degrees.
+    """
+
+    width: int
+    height: int
+    center: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    plane_width: float
+    plane_height: float
+    roll_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_size(self.width, self.height)
+        if not (self.plane_width > 0 and self.plane_height > 0):
+            raise ValueError("Plane needs plane_width > 0 and plane_height > 0")
+        object.__setattr__(self, "center", tuple(float(v) for v in self.center))
+        object.__setattr__(self, "normal", tuple(float(v) for v in self.normal))
+        self.axes()  # checks the plane
+
+    @property
+    def finite(self) -> bool:
+        return True
+
+    def axes(self) -> FloatArray:
+        """Columns: right, down, forward (:func:`plane_axes`)."""
+        return plane_axes(self.center, self.normal, self.roll_deg)
+
+    def coordinates(self) -> tuple[FloatArray, FloatArray]:
+        """Offsets along right per column (W,) and along down per row (H,)."""
+        s = _centers(self.width, -self.plane_width / 2, self.plane_width / 2)
+        t = _centers(self.height, -self.plane_height / 2, self.plane_height / 2)
+        return s, t
+
+    def points(self, default_elevation_deg: tuple[float, float] | None = None) -> FloatArray:
+        ax = self.axes()
+        s, t = self.coordinates()
+        c = np.asarray(self.center, np.float64)
+        pts: FloatArray = c + s[None, :, None] * ax[:, 0] + t[:, None, None] * ax[:, 1]
+        return pts
+
+
 def view_rotation(pan_deg: float, tilt_deg: float, roll_deg: float) -> FloatArray:
     """3x3 matrix whose columns are a view's right, down, forward axes in the camera frame.
 

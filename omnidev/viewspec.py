@@ -4,7 +4,8 @@
 |---------------|------------------------------------------------------------------------------|
 | `panorama`    | elev=LO:HI (default: the camera's range), start=DEG, span=DEG, ccw=1         |
 | `cylinder`    | d=DIST, z=BOTTOM:TOP (required), start=DEG, span=DEG, ccw=1                  |
-| `plane`       | d=DIST, w=WIDTH, z=BOTTOM:TOP (required), az=DEG                            |
+| `plane`       | vertical: d=DIST, w=WIDTH, z=BOTTOM:TOP (required), az=DEG                  |
+|               | any plane: c=X:Y:Z, n=NX:NY:NZ, w=WIDTH, h=HEIGHT (required), roll=DEG      |
 | `perspective` | fov=DEG (default 90), pan=DEG, tilt=DEG, roll=DEG                            |
 | `top`         | x=EXTENT, y=EXTENT, z=HEIGHT (required), cx=X, cy=Y                          |
 | `equirect`    | lon=LEFT:RIGHT (default -180:180), lat=BOTTOM:TOP (default -90:90),         |
@@ -16,6 +17,12 @@
 90.0
 >>> parse_view("equirect:1024x512,lon=-100:100,lat=-90:90").lon_deg
 (-100.0, 100.0)
+>>> parse_view("plane:640x480,c=2000:0:-1000,n=1:0:1,w=1500,h=1000").normal
+(1.0, 0.0, 1.0)
+
+A plane given by ``c`` (its centre) and ``n`` (its normal) is seen upright from the viewpoint
+(:func:`omnidev.views.plane_axes`); ``w`` and ``h`` are its size along the view's right and
+down axes.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from omnidev.views import (
     Equirectangular,
     Panorama,
     Perspective,
+    Plane,
     PlaneView,
     TopView,
     View,
@@ -36,7 +44,7 @@ from omnidev.views import (
 _KEYS = {
     "panorama": {"elev", "start", "span", "ccw"},
     "cylinder": {"d", "z", "start", "span", "ccw"},
-    "plane": {"d", "w", "z", "az"},
+    "plane": {"d", "w", "z", "az", "c", "n", "h", "roll"},
     "perspective": {"fov", "pan", "tilt", "roll"},
     "top": {"x", "y", "z", "cx", "cy"},
     "equirect": {"lon", "lat", "pan", "tilt", "roll"},
@@ -58,6 +66,8 @@ lengths in the calibration's unit, e.g. m for the fixtures; angles in degrees):
                    w=WIDTH     plane width (required, < 2 d)
                    z=LO:HI     bottom and top height (required)
                    az=DEG      azimuth of the plane's centre (default 0)
+                   or any plane: c=X:Y:Z centre, n=NX:NY:NZ normal (either sign),
+                   w=WIDTH, h=HEIGHT its size (all required), roll=DEG (default 0)
   perspective:WxH  pinhole view
                    fov=DEG     horizontal field of view, (0, 180) (default 90)
                    pan=DEG, tilt=DEG, roll=DEG  view direction (default 0, 0, 0)
@@ -97,6 +107,18 @@ def _pair(spec: str, key: str, text: str) -> tuple[float, float]:
     return _num(spec, key, parts[0]), _num(spec, key, parts[1])
 
 
+def _triple(spec: str, key: str, text: str) -> tuple[float, float, float]:
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise ViewSpecError(f"view {spec!r}: {key} must be X:Y:Z, got {text!r}")
+    x, y, z = (_num(spec, key, p) for p in parts)
+    return x, y, z
+
+
+_PLANE_GENERAL = {"c", "n", "h", "roll"}
+_PLANE_VERTICAL = {"d", "z", "az"}
+
+
 def parse_view(spec: str) -> View:
     """Parse a view description (see the module docstring)."""
     if len(spec) > 1000:
@@ -126,7 +148,16 @@ def parse_view(spec: str) -> View:
                 f"{', '.join(sorted(_KEYS[kind]))}"
             )
         kv[key] = val.strip()
-    missing = _REQUIRED.get(kind, set()) - set(kv)
+    required = _REQUIRED.get(kind, set())
+    if kind == "plane" and set(kv) & _PLANE_GENERAL:
+        mixed = set(kv) & _PLANE_VERTICAL
+        if mixed:
+            raise ViewSpecError(
+                f"view {spec!r}: a plane is either c, n, w, h[, roll] (any plane) or d, w, "
+                f"z[, az] (vertical); {', '.join(sorted(mixed))} does not go with c and n"
+            )
+        required = {"c", "n", "w", "h"}
+    missing = required - set(kv)
     if missing:
         raise ViewSpecError(f"view {spec!r}: {kind} needs {', '.join(sorted(missing))}")
 
@@ -158,6 +189,16 @@ def parse_view(spec: str) -> View:
             zb, zt = _pair(spec, "z", kv["z"])
             return CylinderPanorama(
                 w, h, num("d", 0), zb, zt, num("start", 0.0), num("span", 360.0), clockwise()
+            )
+        if kind == "plane" and "c" in kv:
+            return Plane(
+                w,
+                h,
+                _triple(spec, "c", kv["c"]),
+                _triple(spec, "n", kv["n"]),
+                num("w", 0),
+                num("h", 0),
+                num("roll", 0.0),
             )
         if kind == "plane":
             zb, zt = _pair(spec, "z", kv["z"])

@@ -19,6 +19,7 @@ def test_exports_are_the_documented_names():
         "OmnidevError",
         "Panorama",
         "Perspective",
+        "Plane",
         "PlaneView",
         "PointerSample",
         "Remapper",

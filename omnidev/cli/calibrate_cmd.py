@@ -16,9 +16,15 @@ from omnidev.cli.options import parse_floats, parse_size
 from omnidev.errors import CalibrationError
 from omnidev.imagefile import read_image
 from omnidev.panotable.camfile import save_table
-from omnidev.panotable.center import detect_omni_circles
+from omnidev.panotable.center import detect_image_center
 from omnidev.panotable.landmarks import read_landmarks_csv
-from omnidev.panotable.table import calibrate
+from omnidev.panotable.table import (
+    Calibration,
+    GeneralCalibration,
+    calibrate,
+    calibrate_general,
+    dissertation_misfit,
+)
 
 TABLE_BYTES_PER_ENTRY = 160.0
 """Peak memory of filling a pano-mapping table and plotting it, bytes per entry (upper bound)."""
@@ -43,7 +49,31 @@ def register(sub: Any) -> None:
     pt.add_argument(
         "--image-center",
         metavar="U,V|detect",
-        help="image center in pixels, or 'detect' to find it in --image",
+        help="image center in pixels, or 'detect' to measure it in --image (default: detect); "
+        "the generalized model fits it, starting there",
+    )
+    pt.add_argument(
+        "--center-kind",
+        choices=("auto", "mirror", "fisheye"),
+        default="auto",
+        help="what --image-center detect looks for: a mirror's rim and cut-off circle, or a "
+        "fisheye's image circle (default: auto)",
+    )
+    pt.add_argument(
+        "--model",
+        choices=("dissertation", "general"),
+        default="dissertation",
+        help="dissertation: one radial function about a given center (ch. 4); general: also "
+        "fits the center, pixel aspect, tilt, keystone and azimuth harmonics, the order "
+        "chosen by held-out residual (needs >= 13 landmarks; boards give hundreds)",
+    )
+    pt.add_argument(
+        "--max-residual",
+        type=float,
+        default=2.0,
+        metavar="PX",
+        help="refuse to write a table whose RMS (general: held-out RMS) is over PX "
+        "(default 2.0; 0 = never refuse)",
     )
     pt.add_argument("--image", type=Path, help="an omni-image of this camera (size, center)")
     pt.add_argument("--image-size", metavar="WxH", help="omni-image size when no --image")
@@ -105,18 +135,24 @@ def run(args: argparse.Namespace) -> int:
         )
     cutoff = args.cutoff_radius or 0.0
     disc = None
+    sigma = None
     if args.image_center is None or args.image_center == "detect":
         if image is None:
-            raise CalibrationError("--image-center detect needs --image")
-        circles = detect_omni_circles(np.asarray(image, np.uint8))
-        center = circles.center
+            raise CalibrationError(
+                "--image-center detect needs --image (or give --image-center U,V)"
+            )
+        try:
+            est = detect_image_center(np.asarray(image, np.uint8), kind=args.center_kind)
+        except CalibrationError as exc:
+            raise CalibrationError(f"{args.image}: {exc}") from None
+        center, sigma = est.center, est.sigma_px
         if args.cutoff_radius is None:
-            cutoff = circles.cutoff_radius
-        disc = circles.disc_radius
+            cutoff = est.cutoff_radius
+        disc = est.disc_radius
+        cut = f", cut-off radius {est.cutoff_radius:.1f} px" if est.cutoff is not None else ""
         print(
-            f"detected image center ({center[0]:.2f}, {center[1]:.2f}) px, "
-            f"cut-off radius {circles.cutoff_radius:.1f} px, "
-            f"mirror disc radius {circles.disc_radius:.1f} px"
+            f"detected image center ({center[0]:.2f}, {center[1]:.2f}) px +- {sigma:.2f} px "
+            f"({est.kind}{cut}, outer radius {disc:.1f} px, aspect {est.aspect:.4f})"
         )
     else:
         cu, cv = parse_floats(args.image_center, 2, "--image-center")
@@ -139,22 +175,61 @@ def run(args: argparse.Namespace) -> int:
         table_size = parse_size(args.table_size, "--table-size", minimum=2, maximum=32768)
     tw, th = table_size or size
     check_pixels(tw, th, TABLE_BYTES_PER_ENTRY, f"a {tw}x{th} pano-mapping table")
-    calib = calibrate(
-        lm.uv,
-        lm.xyz,
-        mirror,
-        center,
-        size,
-        disc_radius=disc,
-        azimuth=args.azimuth,
-        rho_range=rho_range,
-        table_size=table_size,
-        cutoff_radius=cutoff,
-    )
-    t = calib.table
+    bound = args.max_residual if args.max_residual and args.max_residual > 0 else None
     print(f"{len(lm.rows)} landmarks from {args.landmarks}")
+    calib: Calibration | GeneralCalibration
+    if args.model == "general":
+        calib = calibrate_general(
+            lm.uv,
+            lm.xyz,
+            mirror,
+            center,
+            size,
+            disc_radius=disc,
+            rho_range=rho_range,
+            table_size=table_size,
+            cutoff_radius=cutoff,
+            groups=lm.groups,
+            max_heldout_px=bound,
+            rows=lm.rows,
+        )
+        _report_general(calib, lm.rows)
+    else:
+        calib = calibrate(
+            lm.uv,
+            lm.xyz,
+            mirror,
+            center,
+            size,
+            disc_radius=disc,
+            azimuth=args.azimuth,
+            rho_range=rho_range,
+            table_size=table_size,
+            cutoff_radius=cutoff,
+        )
+        _report_dissertation(calib, lm.rows)
+        rms = float(np.sqrt(np.mean(calib.reprojection_px**2)))
+        if bound is not None and rms > bound:
+            raise CalibrationError(dissertation_misfit(calib, bound))
+    t = calib.table
+    print(
+        f"table {t.M} x {t.N}, elevation {math.degrees(t.rho_range[0]):.2f} .. "
+        f"{math.degrees(t.rho_range[1]):.2f} deg"
+    )
+    save_table(out, calib, force=args.force)
+    print(f"wrote {out}")
+    if isinstance(calib, Calibration):
+        from omnidev.panotable.plots import plot_radial_fit
+
+        plot_radial_fit(calib, plot, force=args.force)
+        print(f"wrote {plot}")
+    return 0
+
+
+def _report_dissertation(calib: Calibration, rows: tuple[int, ...]) -> None:
+    t = calib.table
     print(" line   elevation(deg)   radius(px)   radial residual(px)   reprojection(px)")
-    for i, line in enumerate(lm.rows):
+    for i, line in enumerate(rows):
         print(
             f"{line:5d}   {math.degrees(calib.polar.rho[i]):14.3f}   {calib.polar.r[i]:10.2f}"
             f"   {calib.fit.residual_px[i]:19.3f}   {calib.reprojection_px[i]:16.3f}"
@@ -166,17 +241,30 @@ def run(args: argparse.Namespace) -> int:
     )
     print("coefficients a0..a4: " + " ".join(f"{c:.6g}" for c in t.coeffs))
     print(f"azimuth: phi = {t.azimuth_sign:+d} theta {math.degrees(t.azimuth_offset):+.3f} deg")
-    print(
-        f"table {t.M} x {t.N}, elevation {math.degrees(t.rho_range[0]):.2f} .. "
-        f"{math.degrees(t.rho_range[1]):.2f} deg"
-    )
-    save_table(out, calib, force=args.force)
-    from omnidev.panotable.plots import plot_radial_fit
 
-    plot_radial_fit(calib, plot, force=args.force)
-    print(f"wrote {out}")
-    print(f"wrote {plot}")
-    return 0
+
+def _report_general(calib: GeneralCalibration, rows: tuple[int, ...]) -> None:
+    fit = calib.fit
+    print("model order             parameters   held-out RMS(px)   p95(px)   fit RMS(px)")
+    for sc in fit.scores:
+        mark = "*" if sc.terms == fit.terms else " "
+        print(
+            f"{mark} {sc.terms.describe()}\n  {'':22s}{sc.terms.n_params():10d}"
+            f"   {sc.heldout_rms_px:16.3f}   {sc.heldout_p95_px:7.3f}   {sc.train_rms_px:11.3f}"
+        )
+    m = fit.mapping
+    worst = int(np.argmax(calib.heldout_px))
+    print(f"kept: {fit.terms.describe()}")
+    print(
+        f"held-out RMS {fit.heldout_rms_px:.3f} px (worst: line {rows[worst]}, "
+        f"{calib.heldout_px[worst]:.2f} px); fit RMS {fit.rms_px:.3f} px"
+    )
+    print(
+        f"image center ({m.image_center[0]:.2f}, {m.image_center[1]:.2f}) px, aspect "
+        f"{m.aspect:.5f}, tilt {m.tilt_deg:.3f} deg, keystone ({m.keystone[0]:.3g}, "
+        f"{m.keystone[1]:.3g}) 1/px, azimuth phi = {m.azimuth_sign:+d} theta "
+        f"{math.degrees(m.azimuth_offset):+.3f} deg"
+    )
 
 
 # ---------------------------------------------------------------- calibrate screen (ch. 5)

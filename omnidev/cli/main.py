@@ -28,6 +28,7 @@ SUBCOMMANDS = (
     "plugins_cmd",
     "devices_cmd",
     "calibrate_cmd",
+    "landmarks_cmd",
     "unwarp_cmd",
     "sim_cmd",
     "bench_cmd",

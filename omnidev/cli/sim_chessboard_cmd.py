@@ -15,13 +15,14 @@ def register_chessboard(ssub: Any) -> None:
     c = ssub.add_parser(
         "chessboard",
         help="chessboard / ChArUco views through a fisheye lens, with the true lens and poses",
-        description="Render calibration views (viewNN.png) through the KB4 or Mei test lens "
+        description="Render calibration views (viewNN.png) through the KB4, Mei or Scaramuzza "
+        "(catadioptric) test lens "
         "(omnidev.sim.chessboard.default_lens; board poses by default_pose_options: Mei "
         "boards reach the image border) and write truth.json: the lens parameters, "
         "every board pose and every corner's exact pixel.",
     )
     c.add_argument("outdir", type=Path)
-    c.add_argument("--model", choices=("kb4", "mei"), default="kb4")
+    c.add_argument("--model", choices=("kb4", "mei", "scaramuzza"), default="kb4")
     c.add_argument("--pattern", default="chessboard:9x6,30", metavar="SPEC")
     c.add_argument("--views", type=int, default=14)
     c.add_argument("--size", default="800x800", metavar="WxH")

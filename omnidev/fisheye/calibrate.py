@@ -1,15 +1,24 @@
-"""Fisheye calibration from chessboard / ChArUco views: cv2.fisheye (KB4) and cv2.omnidir (Mei).
+"""Fisheye and omni-camera calibration from chessboard / ChArUco views.
+
+Three models: cv2.fisheye (KB4), cv2.omnidir (Mei) and OCamCalib's polynomial
+(``scaramuzza``, :mod:`omnidev.fisheye.ocamcalib`).
 
 Steps (docs/fisheye-calibration.md):
 
-1. :func:`detect_corners`: ``cv2.findChessboardCornersSB`` refined by ``cv2.cornerSubPix``,
-   or ``cv2.aruco.CharucoDetector`` for a ChArUco board.
+1. :func:`detect_corners`: a chessboard by :func:`omnidev.fisheye.board_detect.detect_chessboard`
+   (``cv2.findChessboardCornersSB``, ``cv2.findChessboardCorners``, a grid grown from
+   saddle points for strongly distorted omni-images, OpenCV's two on the image upsampled
+   twice; every corner refined by
+   ``cv2.cornerSubPix`` in a window fitted to its own squares), or
+   ``cv2.aruco.CharucoDetector`` for a ChArUco board.
 2. :func:`calibrate_views` runs the solver robustly: cv2.fisheye with
    ``CALIB_RECOMPUTE_EXTRINSIC | CALIB_CHECK_COND | CALIB_FIX_SKEW`` (when a view's pose
    is ill-conditioned, the view whose removal lets the solver converge is dropped and the
    solver rerun: OpenCV's message often names a victim, not the culprit),
    cv2.omnidir with ``CALIB_FIX_SKEW`` (views its initialisation rejects are the ones missing
-   from its ``idx``); then a view whose own reprojection RMS exceeds
+   from its ``idx``), OCamCalib's linear initialisation with a centre search and a
+   Levenberg-Marquardt refinement for ``scaramuzza`` (views the linear solution cannot image
+   are dropped); then a view whose own reprojection RMS exceeds
    ``max(OUTLIER_MIN_PX, OUTLIER_FACTOR * median)`` is dropped (a misdetected board) and the
    solver rerun. Every drop is recorded with its reason.
 3. Held-out error: K-fold cross-validation over the used views. Each fold is calibrated
@@ -41,17 +50,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from omnidev.errors import CalibrationError
+from omnidev.fisheye import ocamcalib as ocam
+from omnidev.fisheye.board_detect import METHODS as BOARD_METHODS
+from omnidev.fisheye.board_detect import detect_chessboard
 from omnidev.fisheye.camera import MOUNTS, FisheyeCamera
-from omnidev.fisheye.models import KannalaBrandt, LensModel, Unified
+from omnidev.fisheye.models import KannalaBrandt, LensModel, Scaramuzza, Unified
 from omnidev.fisheye.pattern import Pattern
 
 FloatArray = NDArray[np.float64]
 Image = NDArray[np.uint8]
 
-MODELS = ("kb4", "mei")
+MODELS = ("kb4", "mei", "scaramuzza")
 PARAMS: dict[str, tuple[str, ...]] = {
     "kb4": ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"),
     "mei": ("fx", "fy", "cx", "cy", "xi", "k1", "k2", "p1", "p2"),
+    "scaramuzza": ocam.PARAM_NAMES,
 }
 KB4_FLAGS = cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_CHECK_COND | cv2.CALIB_FIX_SKEW
 MEI_FLAGS = cv2.omnidir.CALIB_FIX_SKEW
@@ -83,11 +96,14 @@ class Detection:
         name: the image's name (file name), used in messages.
         image_points: (N, 2) pixels.
         object_points: (N, 3) the same corners in the board frame, mm.
+        method: the detector that found them
+            (:data:`omnidev.fisheye.board_detect.METHODS`, or ``charuco``).
     """
 
     name: str
     image_points: FloatArray
     object_points: FloatArray
+    method: str = ""
 
 
 def _grey(image: Image) -> Image:
@@ -97,38 +113,31 @@ def _grey(image: Image) -> Image:
     return np.asarray(img, np.uint8)
 
 
-def _refine(grey: Image, uv: FloatArray, spacing: float) -> FloatArray:
-    half = int(np.clip(math.floor(0.4 * spacing), 2, 7))
-    pts = uv.reshape(-1, 1, 2).astype(np.float32)
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
-    out = cv2.cornerSubPix(grey, pts, (half, half), (-1, -1), crit)
-    return np.asarray(out, np.float64).reshape(-1, 2)
-
-
-def detect_corners(image: Image, pattern: Pattern, *, name: str = "") -> Detection | None:
+def detect_corners(
+    image: Image,
+    pattern: Pattern,
+    *,
+    name: str = "",
+    methods: Sequence[str] | None = None,
+) -> Detection | None:
     """The pattern's corners in a (H, W[, 3]) uint8 image, or None if the board is not found.
 
-    A chessboard must be found whole (``cv2.findChessboardCornersSB`` with
-    ``CALIB_CB_NORMALIZE_IMAGE | CALIB_CB_EXHAUSTIVE | CALIB_CB_ACCURACY``), then each corner is
-    refined by ``cv2.cornerSubPix`` in a window of 0.4 corner spacings (2..7 px half-size).
+    A chessboard must be found whole, by
+    :func:`omnidev.fisheye.board_detect.detect_chessboard` (``methods``: its detectors, in
+    order; default all: ``cv2.findChessboardCornersSB``, ``cv2.findChessboardCorners``, a
+    grid grown from saddle points, then OpenCV's two on the image upsampled twice), each
+    corner refined by ``cv2.cornerSubPix`` in a window of 0.4 of its own spacing (2..7 px
+    half-size).
     A ChArUco board may be partly visible; fewer than :data:`MIN_CORNERS` corners is None. Its
     corners are refined by ``cv2.cornerSubPix`` too, in a window that stays clear of the
     markers (a refinement that moves a corner by 1 px or more is not taken).
     """
     grey = _grey(image)
     if pattern.kind == "chessboard":
-        flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
-        ok, corners = cv2.findChessboardCornersSB(grey, pattern.inner, flags=flags)
-        if not ok or corners is None:
+        found = detect_chessboard(grey, pattern.inner, methods=methods or BOARD_METHODS)
+        if found is None:
             return None
-        uv = np.asarray(corners, np.float64).reshape(-1, 2)
-        cx, cy = pattern.inner
-        grid = uv.reshape(cy, cx, 2)
-        spacing = min(
-            float(np.linalg.norm(np.diff(grid, axis=1), axis=-1).min()),
-            float(np.linalg.norm(np.diff(grid, axis=0), axis=-1).min()),
-        )
-        return Detection(name, _refine(grey, uv, spacing), pattern.object_points())
+        return Detection(name, found.uv, pattern.object_points(), found.method)
     detector = cv2.aruco.CharucoDetector(pattern.charuco_board())
     corners, ids, _, _ = detector.detectBoard(grey)
     if ids is None or len(ids) < MIN_CORNERS:
@@ -150,7 +159,7 @@ def detect_corners(image: Image, pattern: Pattern, *, name: str = "") -> Detecti
     ).reshape(-1, 2)
     keep = np.linalg.norm(refined - uv, axis=1) < 1.0
     uv[keep] = refined[keep]
-    return Detection(name, uv, pattern.object_points()[idx])
+    return Detection(name, uv, pattern.object_points()[idx], "charuco")
 
 
 # ---------------------------------------------------------------- lens <-> parameters
@@ -159,13 +168,17 @@ def detect_corners(image: Image, pattern: Pattern, *, name: str = "") -> Detecti
 def lens_from_params(model: str, p: Sequence[float] | FloatArray) -> LensModel:
     """A lens from the parameter vector named by :data:`PARAMS` (skew 0)."""
     v = [float(x) for x in p]
+    if model == "scaramuzza":
+        return ocam.lens_from_vector(v)
     if model == "kb4":
         return KannalaBrandt(v[0], v[1], v[2], v[3], (v[4], v[5], v[6], v[7]))
     return Unified(v[0], v[1], v[2], v[3], v[4], k1=v[5], k2=v[6], p1=v[7], p2=v[8])
 
 
 def params_of(lens: LensModel) -> FloatArray:
-    """The parameter vector of a KB4 or Mei lens, in :data:`PARAMS` order."""
+    """The parameter vector of a KB4, Mei or Scaramuzza lens, in :data:`PARAMS` order."""
+    if isinstance(lens, Scaramuzza):
+        return ocam.vector_of(lens)
     if isinstance(lens, KannalaBrandt):
         return np.array([lens.fx, lens.fy, lens.cx, lens.cy, *lens.k], np.float64)
     if isinstance(lens, Unified):
@@ -180,7 +193,11 @@ def effective_focal(lens: LensModel) -> tuple[float, float]:
     """(fx, fy) of the image scale at the optical axis, px per rad.
 
     KB4: fx, fy. Mei: fx / (1 + xi), fy / (1 + xi) (``r = f sin t / (cos t + xi)``).
+    Scaramuzza: -ss[0] along columns, -c ss[0] along rows (the angle from the axis is
+    ``atan2(rho, -ss(rho))``, rho / -ss[0] near the axis).
     """
+    if isinstance(lens, Scaramuzza):
+        return -lens.ss[0], -lens.c * lens.ss[0]
     if isinstance(lens, Unified):
         return lens.fx / (1 + lens.xi), lens.fy / (1 + lens.xi)
     if isinstance(lens, KannalaBrandt):
@@ -189,6 +206,14 @@ def effective_focal(lens: LensModel) -> tuple[float, float]:
 
 
 # ---------------------------------------------------------------- poses, residuals
+
+
+def principal_point(lens: LensModel) -> tuple[float, float]:
+    """(u, v) px of the optical axis's image (KB4, Mei: (cx, cy); Scaramuzza: (yc, xc))."""
+    if isinstance(lens, Scaramuzza):
+        return lens.yc, lens.xc
+    p = params_of(lens)
+    return float(p[2]), float(p[3])
 
 
 def _rot(rvec: FloatArray) -> FloatArray:
@@ -221,25 +246,48 @@ def _pose_jacobian(
     return jac
 
 
+def _look_at(d: FloatArray) -> FloatArray:
+    """A rotation taking unit vector ``d`` to +z."""
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(d, z)
+    s = float(np.linalg.norm(axis))
+    c = float(np.dot(d, z))
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    r, _ = cv2.Rodrigues(axis / s * math.atan2(s, c))
+    return np.asarray(r, np.float64)
+
+
 def fit_pose(
     lens: LensModel, obj: FloatArray, uv: FloatArray, *, iterations: int = 30
 ) -> tuple[FloatArray, FloatArray] | None:
     """The board pose (rvec, tvec; board -> optical frame, mm) that best reprojects ``uv``.
 
-    Initial pose: the corners are unprojected to rays, rays in front of the lens plane
-    (z > 0.1) go on the normalized plane, and ``cv2.solvePnP`` (IPPE, planar board) solves
-    it; then Levenberg-Marquardt on the pixel reprojection error. None if fewer than 4
-    corners are usable.
+    Initial pose: the corners are unprojected to rays, the rays are turned so that their
+    mean direction is the z axis (a board beyond 90 degrees from the optical axis, as an
+    omni-camera sees it, then lies in front of a virtual pinhole), rays within 80 degrees of
+    that direction go on its normalized plane, and ``cv2.solvePnP`` (IPPE, planar board)
+    solves it; then Levenberg-Marquardt on the pixel reprojection error. None if fewer than
+    4 corners are usable.
     """
     rays, ok = lens.unproject(uv)
-    use = ok & (np.nan_to_num(rays[:, 2]) > 0.1)
+    if int(ok.sum()) < 4:
+        return None
+    mean = np.sum(rays[ok], axis=0)
+    if not float(np.linalg.norm(mean)) > 0:
+        return None
+    turn = _look_at(mean / np.linalg.norm(mean))  # turn @ mean = +z
+    local = rays @ turn.T
+    use = ok & (np.nan_to_num(local[:, 2]) > math.cos(math.radians(80.0)))
     if int(use.sum()) < 4:
         return None
-    norm = rays[use, :2] / rays[use, 2:]
+    norm = local[use, :2] / local[use, 2:]
     found, rvec, tvec = cv2.solvePnP(obj[use], norm, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
     if not found:
         return None
-    pose = np.concatenate([np.ravel(rvec), np.ravel(tvec)]).astype(np.float64)
+    rot = turn.T @ _rot(np.ravel(rvec))
+    rv, _ = cv2.Rodrigues(rot)
+    pose = np.concatenate([np.ravel(rv), turn.T @ np.ravel(tvec)]).astype(np.float64)
     target = np.asarray(uv, np.float64).ravel()
     lam = 1e-3
     res = reproject(lens, obj, pose[:3], pose[3:]).ravel() - target
@@ -397,6 +445,44 @@ def _run_mei(
     return lens, [np.ravel(r) for r in rvecs], [np.ravel(t) for t in tvecs], idx, dropped
 
 
+def _run_scaramuzza(
+    obj: list[FloatArray], img: list[FloatArray], size: tuple[int, int]
+) -> tuple[LensModel, list[FloatArray], list[FloatArray], list[int], dict[int, str]]:
+    """OCamCalib's linear solution with the centre search, then the refinement.
+
+    A view that the linear solution does not image (a corner with no real root of the
+    polynomial) is dropped and the search rerun without it.
+    """
+    idx = list(range(len(obj)))
+    dropped: dict[int, str] = {}
+    while True:
+        if len(idx) < MIN_VIEWS:
+            return _few(idx, dropped)
+        o = [obj[i] for i in idx]
+        q = [img[i] for i in idx]
+        try:
+            lin = ocam.find_centre(o, q, size)
+        except ocam.OcamCalibError as exc:
+            raise CalibrationError(f"OCamCalib initialisation failed: {exc}") from None
+        bad = [
+            j
+            for j in range(len(idx))
+            if not np.all(
+                np.isfinite(ocam.reprojection(lin.lens, o[j], lin.rvecs[j], lin.tvecs[j]))
+            )
+        ]
+        if bad:
+            for j in bad:
+                dropped[idx[j]] = "not imaged by the linear (OCamCalib) initialisation"
+            idx = [i for j, i in enumerate(idx) if j not in bad]
+            continue
+        try:
+            ref = ocam.refine(lin.lens, o, q, lin.rvecs, lin.tvecs)
+        except ocam.OcamCalibError as exc:
+            raise CalibrationError(f"OCamCalib refinement failed: {exc}") from None
+        return ref.lens, ref.rvecs, ref.tvecs, idx, dropped
+
+
 class _TooFewError(Exception):
     def __init__(self, used: list[int], dropped: dict[int, str]) -> None:
         super().__init__("too few views")
@@ -434,6 +520,8 @@ def _solve(
     def run(
         o: list[FloatArray], i: list[FloatArray], sz: tuple[int, int]
     ) -> tuple[LensModel, list[FloatArray], list[FloatArray], list[int], dict[int, str]]:
+        if model == "scaramuzza":
+            return _run_scaramuzza(o, i, sz)
         return _run_kb4(o, i, sz) if model == "kb4" else _run_mei(o, i, sz, mei_flags)
 
     keep = list(range(len(obj)))
@@ -559,7 +647,7 @@ class FisheyeCalibration:
 
     Attributes:
         camera: the calibrated camera (lens in the optical frame, the given mount).
-        model: ``kb4`` or ``mei``.
+        model: ``kb4``, ``mei`` or ``scaramuzza``.
         flags: the solver flags used, as text.
         train_rms_px: RMS over all used views' corners with the final calibration.
         heldout_rms_px: RMS over all used views' corners, each with the fold that held it out
@@ -595,6 +683,11 @@ def _flag_names(model: str, fix: Sequence[str] = ()) -> str:
         return (
             "cv2.fisheye.calibrate: CALIB_RECOMPUTE_EXTRINSIC | CALIB_CHECK_COND | CALIB_FIX_SKEW"
         )
+    if model == "scaramuzza":
+        return (
+            "OCamCalib: linear initialisation with centre search, Levenberg-Marquardt on all "
+            "intrinsics (degree 4, ss[1] = 0, symmetric affine) and poses"
+        )
     return "cv2.omnidir.calibrate: " + " | ".join(
         ["CALIB_FIX_SKEW"] + [f"CALIB_FIX_{n.upper()}" for n in MEI_FIXABLE if n in fix]
     )
@@ -617,7 +710,7 @@ def _coverage(
 ) -> tuple[float, list[str], float]:
     """Reach of the corners toward the border (fraction) and the outer octants with none."""
     w, h = size
-    cx, cy = (float(c) for c in params_of(lens)[2:4])
+    cx, cy = principal_point(lens)
     inner = min(cx + 0.5, w - 0.5 - cx, cy + 0.5, h - 0.5 - cy)
     pts = np.concatenate([np.asarray(p).reshape(-1, 2) for p in img])
     d = pts - [cx, cy]
@@ -652,7 +745,8 @@ def projection_sigma_px(
     p0 = params_of(lens)
     uu, vv = np.meshgrid(np.linspace(0, w - 1, n), np.linspace(0, h - 1, n))
     uv = np.stack([uu.ravel(), vv.ravel()], -1)
-    near = np.hypot(uv[:, 0] - p0[2], uv[:, 1] - p0[3]) <= within_px
+    pu, pv = principal_point(lens)
+    near = np.hypot(uv[:, 0] - pu, uv[:, 1] - pv) <= within_px
     rays, ok = lens.unproject(uv[near])
     rays, uv = rays[ok], uv[near][ok]
     if len(uv) == 0:
@@ -726,12 +820,14 @@ def _warnings(
 
     for k, name in enumerate(names):
         bad = (
-            (name in ("fx", "fy") and std[k] > FOCAL_REL_WARN * abs(p[k]))
+            (name in ("fx", "fy", "a0") and std[k] > FOCAL_REL_WARN * abs(p[k]))
             or (name in ("cx", "cy") and std[k] > CENTRE_WARN_PX)
             or (name == "xi" and std[k] > XI_WARN)
         )
         if bad:
-            rel = f"{100 * std[k] / abs(p[k]):.3g} %; " if name in ("fx", "fy") and p[k] else ""
+            rel = (
+                f"{100 * std[k] / abs(p[k]):.3g} %; " if name in ("fx", "fy", "a0") and p[k] else ""
+            )
             out.append(
                 f"{name} is poorly determined: {p[k]:.6g} +- {std[k]:.3g} (1 sigma; {rel}"
                 f"{partner(k)})"
@@ -791,12 +887,13 @@ def calibrate_views(
     progress: Callable[[str], None] | None = None,
     fix: Sequence[str] = (),
 ) -> FisheyeCalibration:
-    """Calibrate a KB4 or Mei lens from the detected corners of each image.
+    """Calibrate a KB4, Mei or Scaramuzza (OCamCalib) lens from the detected corners.
 
     Args:
         detections: one per image, None where no board was found.
         image_size: (width, height) of every image, px.
-        model: ``"kb4"`` (cv2.fisheye) or ``"mei"`` (cv2.omnidir).
+        model: ``"kb4"`` (cv2.fisheye), ``"mei"`` (cv2.omnidir) or ``"scaramuzza"``
+            (:mod:`omnidev.fisheye.ocamcalib`).
         names: the images' names for the report (default: the detections' names).
         holdout: K of the K-fold held-out evaluation (0: none; at most the number of views).
         mount: the camera's mount (:data:`omnidev.fisheye.camera.MOUNTS`), default up.
@@ -924,6 +1021,10 @@ def calibrate_views(
             views.append(ViewError(name, "dropped", n, math.nan, h_rms, notes.get(j, "")))
     held_used = [held[j] for j in final.used if j in held]
     heldout = rms_px(np.concatenate(held_used)) if held_used and k else math.nan
+    if isinstance(lens, Scaramuzza):
+        # the file gets OCamCalib's world2cam polynomial (fast maps); the figures above are
+        # of the exact model (ss root), which it follows to 0.01 px over the image
+        lens = ocam.fit_invpol(lens, image_size)
     camera = FisheyeCamera(lens, image_size, MOUNTS["up"] if mount is None else mount)
     return FisheyeCalibration(
         camera=camera,

@@ -57,6 +57,7 @@ from omnidev.views import (
     Equirectangular,
     Panorama,
     Perspective,
+    Plane,
     PlaneView,
     TopView,
     View,
@@ -149,6 +150,16 @@ def separable_rays(
         s[2] = _centers(view.height, view.z_top, view.z_bottom)
         q = center[:, None] + np.outer(right, s_k)
         return SeparableRays(None, q, s, (s[2] ** 2, view.distance**2 + s_k * s_k))
+    if isinstance(view, Plane):
+        ax = view.axes()
+        s_k, t_l = view.coordinates()
+        c = np.asarray(view.center, np.float64)
+        q = c[:, None] + np.outer(ax[:, 0], s_k)
+        s = np.outer(ax[:, 1], t_l)
+        # |c + s right + t down|^2 = (t^2 + 2 t c.down) + (|c|^2 + s^2 + 2 s c.right)
+        n_row = t_l * t_l + 2.0 * t_l * float(c @ ax[:, 1])
+        n_col = float(c @ c) + s_k * s_k + 2.0 * s_k * float(c @ ax[:, 0])
+        return SeparableRays(None, q, s, (n_row, n_col))
     if isinstance(view, TopView):
         x = _centers(
             view.width, view.center_x - view.extent_x / 2, view.center_x + view.extent_x / 2

@@ -1,4 +1,9 @@
-"""Landmark files: CSV with header ``u,v,X,Y,Z`` (image pixels; world coordinates, one unit)."""
+"""Landmark files: CSV with header ``u,v,X,Y,Z`` (image pixels; world coordinates, one unit).
+
+An optional ``group`` column (an integer, e.g. the board a corner is on, as
+``omnidev landmarks board`` writes) lets the generalized fit leave out whole
+groups when it cross-validates.
+"""
 
 from __future__ import annotations
 
@@ -23,6 +28,7 @@ class Landmarks:
     uv: NDArray[np.float64]
     xyz: NDArray[np.float64]
     rows: tuple[int, ...]
+    groups: NDArray[np.intp] | None = None
 
 
 def read_landmarks_csv(path: Path) -> Landmarks:
@@ -45,8 +51,10 @@ def read_landmarks_csv(path: Path) -> Landmarks:
             f"(expected u,v,X,Y,Z, got {','.join(names)})"
         )
     idx = [names.index(c) for c in COLUMNS]
+    gi = names.index("group") if "group" in names else None
     values: list[list[float]] = []
     rows: list[int] = []
+    groups: list[int] = []
     for lineno, fields in enumerate(reader, start=2):
         if not fields or all(not f.strip() for f in fields) or fields[0].lstrip().startswith("#"):
             continue
@@ -66,9 +74,18 @@ def read_landmarks_csv(path: Path) -> Landmarks:
             if not math.isfinite(x):
                 raise CalibrationError(f"{path} line {lineno}: column {col} is not finite ({raw})")
             row.append(x)
+        if gi is not None:
+            raw = fields[gi].strip()
+            try:
+                groups.append(int(raw))
+            except ValueError:
+                raise CalibrationError(
+                    f"{path} line {lineno}: column group is {raw!r}, not an integer"
+                ) from None
         values.append(row)
         rows.append(lineno)
     if not values:
         raise CalibrationError(f"{path}: no landmark rows after the header")
     arr = np.array(values, np.float64)
-    return Landmarks(arr[:, :2], arr[:, 2:], tuple(rows))
+    g = np.array(groups, np.intp) if gi is not None else None
+    return Landmarks(arr[:, :2], arr[:, 2:], tuple(rows), g)

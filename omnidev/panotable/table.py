@@ -25,7 +25,9 @@ the array is stored as (N, M, 2): row j, column i.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -33,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from omnidev.errors import CalibrationError
+from omnidev.panotable.general import GeneralFit, PanoMapping, diagnose, fit_general, table_angles
 from omnidev.views import azimuth_elevation
 
 FloatArray = NDArray[np.float64]
@@ -157,14 +160,18 @@ class PanoTable:
     """A pano-mapping table and the model that filled it.
 
     Attributes:
-        coeffs: a0..a4 of f_r (px for rho in rad).
+        coeffs: a0..aD of f_r (px for rho in rad; D = 4 is eq. 4.2).
         image_center: (u0, v0) px.
         image_size: (width, height) px of the omni-images.
-        rho_range: (rho_s, rho_e) rad, the elevations the table covers.
+        rho_range: (rho_s, rho_e) rad, the elevations the table covers (table frame).
         M, N: azimuth and elevation divisions (eqs. 4.5-4.6).
         azimuth_sign, azimuth_offset: s and phi0 (rad) of phi = s theta + phi0.
         cutoff_radius: px; pixels nearer the center are the camera's own
             reflection and are not used (0 = none).
+        aspect, keystone, tilt, harmonics, rho_norm: the generalized terms of
+            :class:`omnidev.panotable.general.Mapping` (neutral by default: the
+            dissertation's table). With a tilt the table is indexed by the
+            camera's own (table-frame) angles and views are turned into it.
     """
 
     coeffs: FloatArray
@@ -176,7 +183,12 @@ class PanoTable:
     azimuth_sign: int = 1
     azimuth_offset: float = 0.0
     cutoff_radius: float = 0.0
-    _table: FloatArray | None = field(default=None, repr=False, compare=False)
+    aspect: float = 1.0
+    keystone: tuple[float, float] = (0.0, 0.0)
+    tilt: tuple[float, float] = (0.0, 0.0)
+    harmonics: FloatArray | None = None
+    rho_norm: tuple[float, float] = (0.0, 1.0)
+    _table: NDArray[np.float32] | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.M < 4 or self.N < 2:
@@ -185,6 +197,58 @@ class PanoTable:
             raise CalibrationError("elevation range must have rho_e > rho_s")
         if self.azimuth_sign not in (1, -1):
             raise CalibrationError("azimuth_sign must be +1 or -1")
+        if not (math.isfinite(self.aspect) and self.aspect > 0):
+            raise CalibrationError(f"pixel aspect must be > 0, got {self.aspect}")
+
+    @classmethod
+    def from_mapping(
+        cls,
+        mapping: PanoMapping,
+        image_size: tuple[int, int],
+        rho_range: tuple[float, float],
+        M: int,
+        N: int,
+        cutoff_radius: float = 0.0,
+    ) -> PanoTable:
+        """The table of a (generalized) mapping."""
+        h = mapping.harmonics
+        return cls(
+            np.asarray(mapping.coeffs, np.float64),
+            mapping.image_center,
+            image_size,
+            rho_range,
+            M,
+            N,
+            mapping.azimuth_sign,
+            mapping.azimuth_offset,
+            cutoff_radius,
+            mapping.aspect,
+            mapping.keystone,
+            mapping.tilt,
+            None if h.size == 0 else np.asarray(h, np.float64),
+            mapping.rho_norm,
+        )
+
+    @property
+    def mapping(self) -> PanoMapping:
+        """The function that fills the table (table-frame angles -> pixels)."""
+        h = np.zeros((0, 1, 4)) if self.harmonics is None else self.harmonics
+        return PanoMapping(
+            np.asarray(self.coeffs, np.float64),
+            self.image_center,
+            self.azimuth_sign,
+            self.azimuth_offset,
+            self.aspect,
+            self.keystone,
+            self.tilt,
+            h,
+            self.rho_norm,
+        )
+
+    @property
+    def method(self) -> str:
+        """``dissertation`` when every generalized term is neutral, else ``general``."""
+        return "dissertation" if self.mapping.is_dissertation else "general"
 
     @property
     def thetas(self) -> FloatArray:
@@ -198,44 +262,42 @@ class PanoTable:
         return np.arange(self.N, dtype=np.float64) * ((re - rs) / self.N) + rs
 
     @property
-    def table(self) -> FloatArray:
-        """(N, M, 2) absolute pixels (u, v) of every entry (Algorithm 2, eqs. 4.7-4.8)."""
+    def table(self) -> NDArray[np.float32]:
+        """(N, M, 2) float32 absolute pixels (u, v) of every entry (Algorithm 2, eqs. 4.7-4.8)."""
+        return self.padded[: self.N, : self.M]
+
+    @property
+    def padded(self) -> NDArray[np.float32]:
+        """(N + 1, M + 1, 2) float32: the table with column 0 repeated after column M - 1
+        (azimuth wraps) and a row N extrapolated linearly from rows N - 2 and N - 1."""
         if self._table is None:
-            object.__setattr__(self, "_table", self.fill())
+            out = np.empty((self.N + 1, self.M + 1, 2), np.float32)
+            self.mapping.fill_grid(self.thetas, self.rhos, out)
+            _wrap(out)
+            object.__setattr__(self, "_table", out)
         assert self._table is not None
         return self._table
 
-    def fill(self) -> FloatArray:
-        """Algorithm 2: compute every entry from f_r and the azimuth mapping."""
-        r = radial(self.coeffs, self.rhos)[:, None]
-        phi = self.azimuth_sign * self.thetas[None, :] + self.azimuth_offset
-        u0, v0 = self.image_center
-        return np.stack([u0 + r * np.cos(phi), v0 + r * np.sin(phi)], axis=-1)
+    def fill(self) -> NDArray[np.float32]:
+        """Algorithm 2: compute every entry from the mapping, (N, M, 2) float32."""
+        out = np.empty((self.N, self.M, 2), np.float32)
+        self.mapping.fill_grid(self.thetas, self.rhos, out)
+        return out
 
-    def with_table(self, table: FloatArray) -> PanoTable:
+    def with_table(self, table: FloatArray | NDArray[np.float32]) -> PanoTable:
         """The same model holding a given (N, M, 2) table (as read from a file)."""
         if table.shape != (self.N, self.M, 2):
             raise CalibrationError(
                 f"table has shape {table.shape}, expected ({self.N}, {self.M}, 2)"
             )
-        obj = PanoTable(
-            self.coeffs,
-            self.image_center,
-            self.image_size,
-            self.rho_range,
-            self.M,
-            self.N,
-            self.azimuth_sign,
-            self.azimuth_offset,
-            self.cutoff_radius,
-        )
-        object.__setattr__(obj, "_table", np.asarray(table, np.float64))
+        obj = dataclasses.replace(self, _table=None)
+        object.__setattr__(obj, "_table", _pad(np.asarray(table, np.float32)))
         return obj
 
     def lookup(
         self, theta: FloatArray, rho: FloatArray, *, method: Lookup = "bilinear"
     ) -> tuple[FloatArray, BoolArray]:
-        """Pixels of scene directions (theta, rho) through the table.
+        """Pixels of table-frame directions (theta, rho) through the table.
 
         method:
             "nearest": the dissertation's lookup: integer floor of the entry
@@ -243,11 +305,11 @@ class PanoTable:
             "bilinear": bilinear interpolation between the four surrounding
                 entries (azimuth wraps around; above the last entry row,
                 rho_e - step .. rho_e, the last two rows extrapolate linearly).
-            "analytic": f_r evaluated directly, no table (the limit of an
+            "analytic": the mapping evaluated directly, no table (the limit of an
                 infinitely fine table).
 
-        Returns (..., 2) pixels and a validity mask (elevation inside the table
-        and radius outside the cut-off circle).
+        Returns (..., 2) float64 pixels and a validity mask (elevation inside the
+        table and radius outside the cut-off circle).
         """
         rs, re = self.rho_range
         dr = (re - rs) / self.N
@@ -260,29 +322,51 @@ class PanoTable:
         if method == "nearest":
             i = np.floor(fi).astype(np.intp) % self.M
             j = np.clip(np.floor(fj).astype(np.intp), 0, self.N - 1)
-            uv = self.table[j, i]
+            uv = self.padded[j, i].astype(np.float64)
         elif method == "bilinear":
             i0f = np.floor(fi)
             a = (fi - i0f)[..., None]
             i0 = i0f.astype(np.intp) % self.M
-            i1 = (i0 + 1) % self.M
-            j0 = np.clip(np.floor(fj).astype(np.intp), 0, self.N - 2)
+            j0 = np.clip(np.floor(fj).astype(np.intp), 0, self.N - 1)
             b = (fj - j0)[..., None]
-            t = self.table
-            uv = (1 - b) * ((1 - a) * t[j0, i0] + a * t[j0, i1]) + b * (
-                (1 - a) * t[j0 + 1, i0] + a * t[j0 + 1, i1]
-            )
+            t = self.padded.reshape(-1, 2)
+            k = j0 * (self.M + 1) + i0
+            top = (1 - a) * t[k] + a * t[k + 1]
+            bottom = (1 - a) * t[k + self.M + 1] + a * t[k + self.M + 2]
+            uv = (1 - b) * top + b * bottom
         elif method == "analytic":
-            r = radial(self.coeffs, rho)
-            phi = self.azimuth_sign * theta + self.azimuth_offset
-            u0, v0 = self.image_center
-            uv = np.stack([u0 + r * np.cos(phi), v0 + r * np.sin(phi)], axis=-1)
+            u, v = self.mapping.pixels(theta, rho)
+            uv = np.stack([u, v], axis=-1)
         else:
             raise ValueError(f"unknown lookup {method!r}; choose one of {', '.join(LOOKUPS)}")
         if self.cutoff_radius > 0:
-            d = uv - np.asarray(self.image_center)
-            valid &= np.hypot(d[..., 0], d[..., 1]) >= self.cutoff_radius
+            valid &= self._outside_cutoff(uv[..., 0], uv[..., 1])
         return uv, valid
+
+    def _outside_cutoff(
+        self, u: FloatArray | NDArray[np.float32], v: FloatArray | NDArray[np.float32]
+    ) -> BoolArray:
+        if self.method == "dissertation":
+            r = np.hypot(u - self.image_center[0], v - self.image_center[1])
+        else:
+            r = self.mapping.ideal_radius(np.asarray(u, np.float64), np.asarray(v, np.float64))
+        return np.asarray(r >= self.cutoff_radius)
+
+
+def _pad(table: NDArray[np.float32]) -> NDArray[np.float32]:
+    """(N, M, 2) -> (N + 1, M + 1, 2): wrap column, extrapolated last row (see PanoTable.padded)."""
+    n, m, _ = table.shape
+    out = np.empty((n + 1, m + 1, 2), np.float32)
+    out[:n, :m] = table
+    _wrap(out)
+    return out
+
+
+def _wrap(out: NDArray[np.float32]) -> None:
+    """Fill the padding of an (N + 1, M + 1, 2) table whose [:N, :M] part is set."""
+    n, m = out.shape[0] - 1, out.shape[1] - 1
+    out[:n, m] = out[:n, 0]
+    out[n] = 2 * out[n - 1] - out[n - 2]
 
 
 def default_rho_range(
@@ -291,18 +375,23 @@ def default_rho_range(
     image_center: tuple[float, float],
     image_size: tuple[int, int],
     *,
-    margin: float = 0.1,
+    margin: float | None = None,
     r_min: float = 0.0,
     r_max: float | None = None,
 ) -> tuple[float, float]:
     """Default elevation range of a table.
 
-    The landmarks' elevation span widened by ``margin`` of itself on each side,
+    The landmarks' elevation span widened by ``margin`` of itself on each side
+    (default 0.1, or 0.3 when ``r_max``, the mirror disc's or image circle's
+    radius, is known: the range then stops at the disc instead of clipping a
+    fisheye's field),
     then narrowed to where f_r stays monotonic and within [r_min, r_max] px
     (default: 0 and the distance from the image center to the farthest image
     corner; the mirror disc's radius when it is known): a 4th-degree
     polynomial is not trusted far outside the data that fixed it.
     """
+    if margin is None:
+        margin = 0.1 if r_max is None else 0.3
     lo, hi = float(np.min(rho_landmarks)), float(np.max(rho_landmarks))
     span = hi - lo
     lo, hi = max(lo - margin * span, -math.pi / 2), min(hi + margin * span, math.pi / 2)
@@ -400,6 +489,120 @@ def calibrate(
     pred, _ = table.lookup(polar.theta, polar.rho, method="analytic")
     reproj = np.hypot(*(pred - uv).T)
     return Calibration(table, fit, polar, reproj)
+
+
+def dissertation_misfit(calib: Calibration, bound_px: float) -> str:
+    """Why the dissertation's table does not fit its landmarks (reprojection RMS over ``bound_px``).
+
+    The radial residuals are regressed on the first two harmonics of the
+    azimuth: when they explain most of it, the camera breaks the table's
+    symmetry (a tilt, a misaligned lens, non-square pixels or a wrong center).
+    """
+    rms = float(np.sqrt(np.mean(calib.reprojection_px**2)))
+    th = calib.polar.theta
+    res = calib.fit.residual_px
+    A = np.stack([np.ones_like(th), np.cos(th), np.sin(th), np.cos(2 * th), np.sin(2 * th)], 1)
+    explained = 0.0
+    if len(th) > 8:
+        coef, *_ = np.linalg.lstsq(A, res, rcond=None)
+        explained = 1.0 - float(np.var(res - A @ coef)) / max(float(np.var(res)), 1e-12)
+    head = (
+        f"the dissertation's table does not fit: reprojection RMS {rms:.2f} px > {bound_px:g} px; "
+    )
+    if explained > 0.5:
+        return head + (
+            f"the radial residuals vary with azimuth ({explained:.0%} explained by its first two "
+            "harmonics): the camera is tilted, its lens is off the mirror axis, its pixels are "
+            "not square, or the image center is off; use --model general"
+        )
+    worst = int(np.argmax(calib.reprojection_px))
+    return head + (
+        f"the residuals do not follow the azimuth; check the landmarks (the worst is landmark "
+        f"{worst}, {calib.reprojection_px[worst]:.1f} px), the mirror center and the units"
+    )
+
+
+@dataclass(frozen=True)
+class GeneralCalibration:
+    """The generalized table, the fit that chose its terms, and per-landmark residuals."""
+
+    table: PanoTable
+    fit: GeneralFit
+    reprojection_px: FloatArray  # (n,) px, landmark to the model fitted on all of them
+    heldout_px: FloatArray  # (n,) px, landmark to the model of the fold that left it out
+
+
+def calibrate_general(
+    uv: FloatArray,
+    xyz_world: FloatArray,
+    mirror_center: FloatArray,
+    image_center: tuple[float, float],
+    image_size: tuple[int, int],
+    *,
+    rho_range: tuple[float, float] | None = None,
+    table_size: tuple[int, int] | None = None,
+    cutoff_radius: float = 0.0,
+    disc_radius: float | None = None,
+    groups: NDArray[np.intp] | None = None,
+    center_prior_px: float | None = None,
+    max_heldout_px: float | None = None,
+    rows: Sequence[int] | None = None,
+) -> GeneralCalibration:
+    """The generalized pano-mapping table (:mod:`omnidev.panotable.general`) from landmarks.
+
+    Args:
+        uv, xyz_world, mirror_center, image_size, rho_range, table_size,
+            cutoff_radius, disc_radius: as :func:`calibrate` (elevations and the
+            cut-off radius are of the camera's own, table frame).
+        image_center: where the fit starts (detected, or a guess); it is fitted.
+        groups: (n,) labels such as the board of each landmark: cross-validation
+            then leaves out whole groups.
+        center_prior_px: 1-sigma of ``image_center`` when it was measured.
+        max_heldout_px: refuse (CalibrationError naming the likely cause) when
+            the held-out RMS is larger; None accepts any.
+        rows: the landmarks' lines in their file, for the error message.
+    """
+    uv = np.asarray(uv, np.float64)
+    xyz = np.asarray(xyz_world, np.float64)
+    if not (np.all(np.isfinite(uv)) and np.all(np.isfinite(xyz))):
+        row = int(np.flatnonzero(~(np.isfinite(uv).all(1) & np.isfinite(xyz).all(1)))[0])
+        raise CalibrationError(f"landmark {row} has a non-finite value")
+    dirs = xyz - np.asarray(mirror_center, np.float64)
+    dist = np.linalg.norm(dirs, axis=1)
+    if np.any(dist <= 0):
+        row = int(np.flatnonzero(dist <= 0)[0])
+        raise CalibrationError(f"landmark {row} is at the mirror center")
+    fit = fit_general(uv, dirs, image_center, groups=groups, center_prior_px=center_prior_px)
+    if max_heldout_px is not None:
+        lines = list(rows) if rows is not None else list(range(len(uv)))
+        why = diagnose(
+            fit.residual_px,
+            fit.heldout_px,
+            dist,
+            lines,
+            max_heldout_px,
+            mapping=fit.mapping,
+            uv=uv,
+            offsets=dirs,
+        )
+        if why is not None:
+            raise CalibrationError(why)
+    m = fit.mapping
+    _, rho = table_angles(dirs, m.tilt)
+    w, h = image_size
+    u0, v0 = m.image_center
+    r_lim = math.hypot(max(u0, w - 1 - u0), max(v0, h - 1 - v0) / m.aspect)
+    rr = rho_range or default_rho_range(
+        m.coeffs,
+        rho,
+        m.image_center,
+        image_size,
+        r_min=cutoff_radius,
+        r_max=disc_radius if disc_radius is not None else r_lim,
+    )
+    M, N = table_size or default_table_size(m.coeffs, rr)
+    table = PanoTable.from_mapping(m, image_size, rr, M, N, cutoff_radius)
+    return GeneralCalibration(table, fit, fit.residual_px, fit.heldout_px)
 
 
 def dissertation_plane_angles(

@@ -138,6 +138,7 @@ def _pose_ok(
     quiet: float,
     max_angle: float,
     margin_px: float,
+    min_angle: float = 0.0,
     min_spacing_px: float,
     max_view_angle: float,
 ) -> bool:
@@ -145,7 +146,7 @@ def _pose_ok(
     pts = np.concatenate([_outline(pattern, quiet), pattern.object_points()])
     cam = pts @ rot.T + t
     ang = np.arctan2(np.hypot(cam[:, 0], cam[:, 1]), cam[:, 2])
-    if np.any(ang > max_angle):
+    if np.any(ang > max_angle) or np.any(ang < min_angle):
         return False
     # the camera sees the printed side: board +z points away from the camera
     n = rot[:, 2]
@@ -176,6 +177,7 @@ def board_poses(
     *,
     seed: int = 0,
     max_angle_deg: float = 80.0,
+    min_angle_deg: float = 0.0,
     max_tilt_deg: float = 40.0,
     max_view_angle_deg: float = 65.0,
     board_angle_deg: tuple[float, float] = (55.0, 95.0),
@@ -185,8 +187,10 @@ def board_poses(
 ) -> list[tuple[FloatArray, FloatArray]]:
     """Board poses ``(R, t)`` (board -> optical frame, mm) covering the image.
 
-    The board centre's angle from the optical axis runs evenly from 0 to the largest that keeps
-    the whole board within ``max_angle_deg`` (so about half the views reach the periphery), its
+    The board centre's angle from the optical axis runs evenly from the smallest that keeps
+    the whole board beyond ``min_angle_deg`` (0 by default; a mirror camera images nothing
+    inside its cut-off circle) to the largest that keeps it within ``max_angle_deg`` (so
+    about half the views reach the periphery), its
     azimuth turns by the golden angle from view to view; the board subtends
     ``board_angle_deg`` (a random value in that range), is tilted about both board axes by up
     to ``max_tilt_deg`` from facing the camera, and rolled freely. Each pose keeps every point
@@ -199,6 +203,7 @@ def board_poses(
     diag = math.hypot(w_mm, h_mm) + 2 * quiet * pattern.square_mm
     centre = np.array([w_mm / 2, h_mm / 2, 0.0])
     max_angle = math.radians(max_angle_deg)
+    min_angle = math.radians(min_angle_deg)
     golden = math.pi * (3.0 - math.sqrt(5.0))
     phase = rng.uniform(0, 2 * math.pi)
     poses: list[tuple[FloatArray, FloatArray]] = []
@@ -208,7 +213,11 @@ def board_poses(
         for attempt in range(400):
             shrink = 1.0 - attempt / 400
             size = math.radians(rng.uniform(*board_angle_deg))
-            alpha = (max_angle - 0.45 * size) * frac * shrink + rng.normal(0, 0.03)
+            lo = min_angle + 0.45 * size if min_angle > 0 else 0.0
+            hi = max(max_angle - 0.45 * size, lo)
+            # a failed draw moves toward the axis, or with min_angle_deg toward mid-range
+            mid = 0.5 if min_angle > 0 else 0.0
+            alpha = lo + (hi - lo) * (frac * shrink + mid * (1 - shrink)) + rng.normal(0, 0.03)
             alpha = min(max(alpha, 0.0), max_angle)
             az = azimuth + rng.normal(0, 0.15)
             d = np.array(
@@ -230,6 +239,7 @@ def board_poses(
                 t,
                 quiet=quiet,
                 max_angle=max_angle,
+                min_angle=min_angle,
                 margin_px=margin_px,
                 min_spacing_px=min_spacing_px,
                 max_view_angle=math.radians(max_view_angle_deg),
@@ -424,14 +434,19 @@ def render_sequence(
 
 
 def default_lens(model: str, image_size: tuple[int, int] = (800, 800)) -> Lens:
-    """The test lenses: a ~200-degree-class KB4 or a Mei lens, scaled to ``image_size``.
+    """The test lenses: a ~200-degree-class KB4, a Mei lens or a catadioptric Scaramuzza
+    lens, scaled to ``image_size``.
 
     At 800 x 800: KB4 fx 290, fy 289.3, centre (402.1, 397.6), k (0.012, -0.006, 0.0021,
     -0.0004); Mei fx 455, fy 454.1, centre (398.9, 402.4), xi 0.95, k1 -0.03, k2 0.006,
-    p1 0.0004, p2 -0.0003. Focal lengths scale with the smaller side, the centre keeps its
-    offset from the image centre (scaled).
+    p1 0.0004, p2 -0.0003; Scaramuzza: the OCamCalib polynomial of a mirror camera (the
+    shape of the KaidanOmni calibration, scaled: 67 degrees off the axis at 167 px from the
+    centre, 140 degrees at 400 px, i.e. up to 50 degrees beyond the lens plane),
+    ss = (-123.0, 0, 1.404e-3, 7.05e-7, 1.29e-8), centre (row, column) (402.7, 397.4), affine
+    c 1.0012, d = e = 0.0004. Focal lengths scale with
+    the smaller side, the centre keeps its offset from the image centre (scaled).
     """
-    from omnidev.fisheye.models import KannalaBrandt, Unified
+    from omnidev.fisheye.models import KannalaBrandt, Scaramuzza, Unified
 
     w, h = image_size
     s = min(w, h) / 800.0
@@ -445,14 +460,19 @@ def default_lens(model: str, image_size: tuple[int, int] = (800, 800)) -> Lens:
             455.0 * s, 454.1 * s, mu - 0.6 * s, mv + 2.9 * s, 0.95,
             k1=-0.03, k2=0.006, p1=0.0004, p2=-0.0003,
         )  # fmt: skip
-    raise ValueError(f"no default lens for model {model!r}: kb4 or mei")
+    if model == "scaramuzza":
+        ss = (-123.0 * s, 0.0, 1.404e-3 / s, 7.05e-7 / s**2, 1.29e-8 / s**3)
+        return Scaramuzza(ss, xc=mv + 3.2 * s, yc=mu - 2.1 * s, c=1.0012, d=0.0004, e=0.0004)
+    raise ValueError(f"no default lens for model {model!r}: kb4, mei or scaramuzza")
 
 
 class PoseOptions(TypedDict, total=False):
     """Options of :func:`board_poses` that :func:`default_pose_options` sets."""
 
     max_angle_deg: float
+    min_angle_deg: float
     board_angle_deg: tuple[float, float]
+    min_spacing_px: float
 
 
 def default_pose_options(model: str) -> PoseOptions:
@@ -464,9 +484,20 @@ def default_pose_options(model: str) -> PoseOptions:
     at 100.6 degrees, its inscribed circle at 81) and boards subtending 30 to 95 degrees, so
     far, small boards reach the image border as a user is told to place them: the corners
     reach 0.97 of the inscribed radius with 24 views (0.78 with the KB4 options).
+    Scaramuzza (the mirror lens): boards between 70 and 135 degrees off the axis (the
+    mirror's ring, as a catadioptric camera sees the room around it), subtending 25 to 60
+    degrees, corners at least 6 px apart (the squeezed squares of a real mirror image:
+    6 to 15 px on KaidanOmni).
     """
+    if model == "scaramuzza":
+        return {
+            "min_angle_deg": 70.0,
+            "max_angle_deg": 135.0,
+            "board_angle_deg": (25.0, 60.0),
+            "min_spacing_px": 6.0,
+        }
     if model == "kb4":
         return {}
     if model == "mei":
         return {"max_angle_deg": 100.0, "board_angle_deg": (30.0, 95.0)}
-    raise ValueError(f"no default pose options for model {model!r}: kb4 or mei")
+    raise ValueError(f"no default pose options for model {model!r}: kb4, mei or scaramuzza")

@@ -1,0 +1,730 @@
+"""The generalized pano-mapping function, beyond the dissertation's aligned, symmetric camera.
+
+The dissertation's table (ch. 4) assumes a perfect camera: the image center is
+known, pixels are square, the camera axis is the world vertical and one radial
+function serves every azimuth. Its future work 7.2 (1) proposes calibrating per
+azimuth when the mirror and lens are not perfect. This module fits, jointly to
+the landmarks:
+
+- the image center (u0, v0), px;
+- the pixel aspect ratio ``aspect`` (v scale / u scale);
+- the tilt of the camera axis against the world vertical: a rotation ``tilt``
+  = (wx, wy) rad (Rodrigues vector, no z part: a turn about the axis is phi0);
+- a keystone (g1, g2) in 1/px: the perspective of a lens tilted against its mirror;
+- the radial function r(rho') of degree ``len(coeffs) - 1`` (4 = eq. 4.2) plus
+  an azimuth-dependent part: K harmonics in theta' whose coefficients are
+  polynomials of degree D in the normalized elevation t = (rho' - mid) / half,
+  for the radius (px) and for the image angle (rad).
+
+Frames (docs/conventions.md). World: the landmarks' frame, Z up. *Table
+frame*: the camera's own frame, the world frame translated to O_m and turned
+by ``R = rodrigues(wx, wy, 0)``: d_table = R d_world. Angles theta', rho' are
+azimuth and elevation in the table frame; the table is indexed by them, so the
+table describes the camera and the tilt describes its mount.
+
+The mapping from a table-frame direction (theta', rho') to a pixel::
+
+    r   = sum_i a_i rho'^i + sum_k sum_i t^i (Rc_ki cos k theta' + Rs_ki sin k theta')
+    phi = s theta' + phi0  + sum_k sum_i t^i (Pc_ki cos k theta' + Ps_ki sin k theta')
+    x, y = r cos phi, r sin phi;  w = 1 + g1 x + g2 y
+    u = u0 + x / w;  v = v0 + aspect * y / w
+
+With every extra term at its neutral value (aspect 1, no tilt, no keystone,
+degree 4, no harmonics) this is the dissertation's eqs. 4.1-4.2 with the
+fitted azimuth mapping of :mod:`omnidev.panotable.table`.
+
+Which terms are kept is chosen by the held-out landmark residual
+(cross-validation over folds of landmarks, or over groups such as boards), so
+that 32 landmarks do not buy 40 parameters.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.errors import CalibrationError
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+TWO_PI = 2.0 * math.pi
+
+
+def rotation_from_tilt(tilt: tuple[float, float]) -> FloatArray:
+    """3x3 rotation R (world -> table frame) of the Rodrigues vector (wx, wy, 0), rad."""
+    wx, wy = float(tilt[0]), float(tilt[1])
+    a = math.hypot(wx, wy)
+    if a == 0.0:
+        return np.eye(3)
+    k = np.array([wx / a, wy / a, 0.0])
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.asarray(np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * (K @ K), np.float64)
+
+
+def table_angles(dirs: FloatArray, tilt: tuple[float, float]) -> tuple[FloatArray, FloatArray]:
+    """Azimuth and elevation (rad) in the table frame of (..., 3) world-frame points."""
+    d = np.asarray(dirs, np.float64)
+    if tilt[0] != 0.0 or tilt[1] != 0.0:
+        d = d @ rotation_from_tilt(tilt).T
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    return np.arctan2(y, x), np.arctan2(z, np.hypot(x, y))
+
+
+@dataclass(frozen=True)
+class PanoMapping:
+    """A (generalized) pano mapping: table-frame direction -> pixel. See the module docstring.
+
+    Attributes:
+        coeffs: a_0..a_D of the radial polynomial, px for rho' in rad (D = 4: eq. 4.2).
+        image_center: (u0, v0) px.
+        azimuth_sign, azimuth_offset: s and phi0 (rad).
+        aspect: v scale over u scale of the pixels (1 = square).
+        keystone: (g1, g2) 1/px.
+        tilt: (wx, wy) rad, world -> table frame.
+        harmonics: (K, D + 1, 4) float64: for harmonic k + 1 and power i of t,
+            (Rc, Rs) px and (Pc, Ps) rad; K = 0 for none.
+        rho_norm: (mid, half) rad of t = (rho' - mid) / half.
+    """
+
+    coeffs: FloatArray
+    image_center: tuple[float, float]
+    azimuth_sign: int = 1
+    azimuth_offset: float = 0.0
+    aspect: float = 1.0
+    keystone: tuple[float, float] = (0.0, 0.0)
+    tilt: tuple[float, float] = (0.0, 0.0)
+    harmonics: FloatArray = field(default_factory=lambda: np.zeros((0, 1, 4)))
+    rho_norm: tuple[float, float] = (0.0, 1.0)
+
+    @property
+    def is_dissertation(self) -> bool:
+        """True when every extra term is neutral (the dissertation's eqs. 4.1-4.2)."""
+        return (
+            self.aspect == 1.0
+            and self.keystone == (0.0, 0.0)
+            and self.tilt == (0.0, 0.0)
+            and (self.harmonics.size == 0 or not np.any(self.harmonics))
+            and len(self.coeffs) == 5
+        )
+
+    @property
+    def tilt_deg(self) -> float:
+        """Angle between the camera axis and the world vertical, degrees."""
+        return math.degrees(math.hypot(*self.tilt))
+
+    def radius_angle(self, theta: FloatArray, rho: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Ideal radius r (px) and image angle phi (rad) of table-frame angles."""
+        theta = np.asarray(theta, np.float64)
+        rho = np.asarray(rho, np.float64)
+        r = np.polynomial.polynomial.polyval(rho, np.asarray(self.coeffs, np.float64))
+        phi = self.azimuth_sign * theta + self.azimuth_offset
+        h = self.harmonics
+        if h.size and np.any(h):
+            mid, half = self.rho_norm
+            t = (rho - mid) / half
+            for k in range(h.shape[0]):
+                c, s = np.cos((k + 1) * theta), np.sin((k + 1) * theta)
+                pr = np.polynomial.polynomial.polyval(t, h[k, :, 0]) * c
+                pr += np.polynomial.polynomial.polyval(t, h[k, :, 1]) * s
+                pp = np.polynomial.polynomial.polyval(t, h[k, :, 2]) * c
+                pp += np.polynomial.polynomial.polyval(t, h[k, :, 3]) * s
+                r = r + pr
+                phi = phi + pp
+        return np.asarray(r, np.float64), np.asarray(phi, np.float64)
+
+    def pixels(self, theta: FloatArray, rho: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Pixel (u, v) of table-frame angles (theta', rho'), each shaped like the inputs."""
+        r, phi = self.radius_angle(theta, rho)
+        x, y = r * np.cos(phi), r * np.sin(phi)
+        g1, g2 = self.keystone
+        if g1 != 0.0 or g2 != 0.0:
+            w = 1.0 + g1 * x + g2 * y
+            x, y = x / w, y / w
+        u0, v0 = self.image_center
+        return u0 + x, v0 + self.aspect * y
+
+    def fill_grid(
+        self, theta: FloatArray, rho: FloatArray, out: NDArray[np.float32], *, block: int = 64
+    ) -> None:
+        """Pixels of the grid theta (M,) x rho (N,) into ``out[:N, :M]`` ((>= N, >= M, 2) float32).
+
+        The same numbers as :meth:`pixels` on the meshgrid (to float32), built row
+        block by row block from the separable parts: the radial polynomial per
+        row, cos/sin of the harmonics per column.
+        """
+        theta = np.asarray(theta, np.float64)
+        rho = np.asarray(rho, np.float64)
+        M, N = theta.size, rho.size
+        h = self.harmonics if self.harmonics.size and np.any(self.harmonics) else None
+        K = 0 if h is None else h.shape[0]
+        ck = [np.cos((k + 1) * theta).astype(np.float32) for k in range(K)]
+        sk = [np.sin((k + 1) * theta).astype(np.float32) for k in range(K)]
+        phi_col = (self.azimuth_sign * theta + self.azimuth_offset).astype(np.float32)
+        tangential = h is not None and bool(np.any(h[:, :, 2:]))
+        if not tangential:
+            cphi, sphi = np.cos(phi_col), np.sin(phi_col)
+        r_row = np.polynomial.polynomial.polyval(rho, np.asarray(self.coeffs, np.float64))
+        mid, half = self.rho_norm
+        t_row = (rho - mid) / half
+        g1, g2 = self.keystone
+        u0, v0 = self.image_center
+        for j0 in range(0, N, block):
+            sl = slice(j0, min(N, j0 + block))
+            r = np.broadcast_to(r_row[sl].astype(np.float32)[:, None], (sl.stop - j0, M)).copy()
+            phi: NDArray[np.float32] | None = None
+            if h is not None:
+                tt = t_row[sl]
+                if tangential:
+                    phi = np.broadcast_to(phi_col, r.shape).copy()
+                for k in range(K):
+                    coef = [
+                        np.polynomial.polynomial.polyval(tt, h[k, :, q]).astype(np.float32)[:, None]
+                        for q in range(4)
+                    ]
+                    r += coef[0] * ck[k] + coef[1] * sk[k]
+                    if phi is not None:
+                        phi += coef[2] * ck[k] + coef[3] * sk[k]
+            if phi is None:
+                x, y = r * cphi, r * sphi
+            else:
+                x, y = r * np.cos(phi), r * np.sin(phi)
+            x = np.asarray(x, np.float32)
+            y = np.asarray(y, np.float32)
+            if g1 != 0.0 or g2 != 0.0:
+                w = np.float32(1.0) + np.float32(g1) * x + np.float32(g2) * y
+                x, y = np.asarray(x / w, np.float32), np.asarray(y / w, np.float32)
+            out[sl, :M, 0] = x + np.float32(u0)
+            out[sl, :M, 1] = y * np.float32(self.aspect) + np.float32(v0)
+
+    def ideal_radius(self, u: FloatArray, v: FloatArray) -> FloatArray:
+        """Radius (px) of pixels in the ideal frame (aspect and keystone undone)."""
+        x = np.asarray(u, np.float64) - self.image_center[0]
+        y = (np.asarray(v, np.float64) - self.image_center[1]) / self.aspect
+        g1, g2 = self.keystone
+        if g1 != 0.0 or g2 != 0.0:  # x' = x / w, w = 1 + g.x  =>  x = x' / (1 - g.x')
+            w = 1.0 - g1 * x - g2 * y
+            x, y = x / w, y / w
+        return np.asarray(np.hypot(x, y), np.float64)
+
+    def project_world(self, dirs: FloatArray) -> FloatArray:
+        """(..., 2) pixels of (..., 3) world-frame directions (from O_m)."""
+        theta, rho = table_angles(dirs, self.tilt)
+        u, v = self.pixels(theta, rho)
+        return np.stack([u, v], -1)
+
+
+# ---------------------------------------------------------------- terms and fitting
+
+
+@dataclass(frozen=True)
+class Terms:
+    """Which generalized terms a fit frees (the model order)."""
+
+    center: bool = True
+    aspect: bool = False
+    tilt: bool = False
+    keystone: bool = False
+    degree: int = 4  # radial polynomial degree
+    harmonics: int = 0  # K
+    harmonic_degree: int = 0  # D
+
+    def describe(self) -> str:
+        parts = []
+        if self.center:
+            parts.append("center")
+        if self.aspect:
+            parts.append("aspect")
+        if self.tilt:
+            parts.append("tilt")
+        if self.keystone:
+            parts.append("keystone")
+        parts.append(f"radial degree {self.degree}")
+        if self.harmonics:
+            parts.append(f"harmonics 1..{self.harmonics} x elevation degree {self.harmonic_degree}")
+        return ", ".join(parts)
+
+    def n_params(self) -> int:
+        return (
+            (self.degree + 1)
+            + 1
+            + 2 * self.center
+            + self.aspect
+            + 2 * self.tilt
+            + 2 * self.keystone
+            + 4 * self.harmonics * (self.harmonic_degree + 1)
+        )
+
+
+CANDIDATES: tuple[Terms, ...] = (
+    Terms(),
+    Terms(aspect=True, tilt=True),
+    Terms(aspect=True, tilt=True, keystone=True),
+    Terms(aspect=True, tilt=True, keystone=True, degree=6),
+    Terms(aspect=True, tilt=True, keystone=True, degree=6, harmonics=1, harmonic_degree=1),
+    Terms(aspect=True, tilt=True, keystone=True, degree=6, harmonics=2, harmonic_degree=1),
+    Terms(aspect=True, tilt=True, keystone=True, degree=6, harmonics=2, harmonic_degree=2),
+    Terms(aspect=True, tilt=True, keystone=True, degree=6, harmonics=3, harmonic_degree=2),
+    Terms(aspect=True, tilt=True, keystone=True, degree=6, harmonics=4, harmonic_degree=3),
+)
+"""The nested model orders tried, simplest first."""
+
+KEYSTONE_SCALE = 1e-6  # parameter units of the keystone: 1e-6 / px
+RIDGE_PX = 30.0  # a harmonic coefficient of this size costs as much as 1 px of one residual
+
+
+def _poly_in_t_to_rho(c: FloatArray, mid: float, half: float) -> FloatArray:
+    """Coefficients in rho of sum c_i t^i with t = (rho - mid) / half."""
+    p = np.polynomial.Polynomial(c)(np.polynomial.Polynomial([-mid / half, 1.0 / half]))
+    out = np.zeros(len(c))
+    out[: len(p.coef)] = p.coef
+    return out
+
+
+def _lm(
+    fun: Callable[[FloatArray], FloatArray], p0: FloatArray, *, max_iter: int = 60
+) -> FloatArray:
+    """Levenberg-Marquardt on residuals ``fun(p)`` (forward-difference Jacobian)."""
+    p = np.asarray(p0, np.float64).copy()
+    if p.size == 0:
+        return p
+    r = fun(p)
+    cost = float(r @ r)
+    lam = 1e-3
+    for _ in range(max_iter):
+        h = 1e-6 * np.maximum(1.0, np.abs(p))
+        J = np.empty((len(r), len(p)))
+        for j in range(len(p)):
+            q = p.copy()
+            q[j] += h[j]
+            J[:, j] = (fun(q) - r) / h[j]
+        g = J.T @ r
+        A = J.T @ J
+        d = np.diag(A).copy()
+        d[d <= 0] = 1e-12
+        rel = 0.0
+        improved = False
+        for _ in range(10):
+            try:
+                step = np.linalg.solve(A + lam * np.diag(d), -g)
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            q = p + step
+            rq = fun(q)
+            cq = float(rq @ rq)
+            if np.isfinite(cq) and cq < cost:
+                rel = (cost - cq) / max(cost, 1e-300)
+                p, r, cost = q, rq, cq
+                lam = max(lam / 3, 1e-9)
+                improved = True
+                break
+            lam *= 8
+        if not improved or rel < 1e-10:
+            break
+    return p
+
+
+def _normal_solve(A: FloatArray, b: FloatArray, reg: FloatArray) -> FloatArray:
+    """argmin |A x - b|^2 + sum reg x^2 by the (column-scaled) normal equations."""
+    norms = np.sqrt(np.sum(A * A, axis=0) + reg)
+    norms[norms == 0] = 1.0
+    An = A / norms
+    G = An.T @ An + np.diag(reg / norms**2)
+    try:
+        x = np.linalg.solve(G, An.T @ b)
+    except np.linalg.LinAlgError:
+        x = np.linalg.lstsq(G, An.T @ b, rcond=None)[0]
+    return np.asarray(x / norms, np.float64)
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """One fit: landmarks, the model order, and the normalization of the elevation."""
+
+    uv: FloatArray
+    dirs: FloatArray
+    terms: Terms
+    s: int
+    mid: float
+    half: float
+    center0: tuple[float, float]
+    center_prior: tuple[tuple[float, float], float] | None
+
+    def unpack_outer(
+        self, q: FloatArray
+    ) -> tuple[tuple[float, float], float, tuple[float, float], tuple[float, float]]:
+        t, i = self.terms, 0
+        center = self.center0
+        if t.center:
+            center, i = (float(q[0]), float(q[1])), 2
+        aspect = 1.0
+        if t.aspect:
+            aspect, i = float(math.exp(q[i])), i + 1
+        tilt = (0.0, 0.0)
+        if t.tilt:
+            tilt, i = (float(q[i]), float(q[i + 1])), i + 2
+        keystone = (0.0, 0.0)
+        if t.keystone:
+            keystone = (float(q[i]) * KEYSTONE_SCALE, float(q[i + 1]) * KEYSTONE_SCALE)
+        return center, aspect, tilt, keystone
+
+    def pack_outer(self, m: PanoMapping) -> FloatArray:
+        t = self.terms
+        q: list[float] = []
+        if t.center:
+            q += list(m.image_center)
+        if t.aspect:
+            q.append(math.log(m.aspect))
+        if t.tilt:
+            q += list(m.tilt)
+        if t.keystone:
+            q += [m.keystone[0] / KEYSTONE_SCALE, m.keystone[1] / KEYSTONE_SCALE]
+        return np.array(q, np.float64)
+
+    def solve(
+        self, q: FloatArray, want_mapping: bool = False
+    ) -> tuple[PanoMapping | None, FloatArray]:
+        """The linear part for outer parameters ``q``: the mapping and the residuals (px)."""
+        t = self.terms
+        center, aspect, tilt, keystone = self.unpack_outer(q)
+        theta, rho = table_angles(self.dirs, tilt)
+        x = self.uv[:, 0] - center[0]
+        y = (self.uv[:, 1] - center[1]) / aspect
+        g1, g2 = keystone
+        if g1 != 0.0 or g2 != 0.0:
+            w = 1.0 - g1 * x - g2 * y
+            x, y = x / w, y / w
+        r_obs = np.hypot(x, y)
+        phi_obs = np.arctan2(y, x)
+        tt = (rho - self.mid) / self.half
+        P = np.vander(tt, t.degree + 1, increasing=True)
+        H = np.vander(tt, t.harmonic_degree + 1, increasing=True)
+        cols = []
+        for k in range(1, t.harmonics + 1):
+            cols += [H * np.cos(k * theta)[:, None], H * np.sin(k * theta)[:, None]]
+        Hk = np.concatenate(cols, 1) if cols else np.zeros((len(tt), 0))
+        ridge = 1.0 / RIDGE_PX
+        # radius: r_obs = P a + Hk b (harmonics ridge-penalized)
+        A = np.concatenate([P, Hk], 1)
+        reg = np.zeros(A.shape[1])
+        reg[P.shape[1] :] = ridge**2
+        sol_r = _normal_solve(A, r_obs, reg)
+        # angle: wrap(phi_obs - s theta) = phi0 + Hk c, weighted by the radius (px)
+        d = phi_obs - self.s * theta
+        c0 = math.atan2(float(np.mean(np.sin(d))), float(np.mean(np.cos(d))))
+        d = np.pi - np.mod(np.pi - (d - c0), TWO_PI)
+        wts = np.maximum(r_obs, 1.0)
+        B = np.concatenate([np.ones((len(tt), 1)), Hk], 1) * wts[:, None]
+        reg_a = np.zeros(B.shape[1])
+        reg_a[1:] = (ridge * 300.0) ** 2
+        sol_a = _normal_solve(B, d * wts, reg_a)
+        res = [
+            A @ sol_r - r_obs,
+            np.sqrt(reg) * sol_r,
+            B @ sol_a - d * wts,
+            np.sqrt(reg_a) * sol_a,
+        ]
+        if self.center_prior is not None and t.center:
+            (cu, cv), sigma = self.center_prior
+            res.append(np.array([(center[0] - cu) / sigma, (center[1] - cv) / sigma]))
+        out = np.concatenate(res)
+        out = np.where(np.isfinite(out), out, 1e6)
+        if not want_mapping:
+            return None, out
+        harm = np.zeros((t.harmonics, t.harmonic_degree + 1, 4))
+        nd = t.harmonic_degree + 1
+        for k in range(t.harmonics):
+            base = 2 * nd * k
+            harm[k, :, 0] = sol_r[P.shape[1] + base : P.shape[1] + base + nd]
+            harm[k, :, 1] = sol_r[P.shape[1] + base + nd : P.shape[1] + base + 2 * nd]
+            harm[k, :, 2] = sol_a[1 + base : 1 + base + nd]
+            harm[k, :, 3] = sol_a[1 + base + nd : 1 + base + 2 * nd]
+        m = PanoMapping(
+            _poly_in_t_to_rho(sol_r[: P.shape[1]], self.mid, self.half),
+            center,
+            self.s,
+            float(c0 + sol_a[0]),
+            aspect,
+            keystone,
+            tilt,
+            harm if t.harmonics else np.zeros((0, 1, 4)),
+            (self.mid, self.half),
+        )
+        return m, out
+
+
+def _fit_one(
+    uv: FloatArray,
+    dirs: FloatArray,
+    terms: Terms,
+    start: PanoMapping,
+    *,
+    mid: float,
+    half: float,
+    center_prior: tuple[tuple[float, float], float] | None,
+) -> PanoMapping:
+    """Variable projection: LM over center, aspect, tilt, keystone; the rest by least squares."""
+    prob = _Problem(
+        uv, dirs, terms, start.azimuth_sign, mid, half, start.image_center, center_prior
+    )
+    q = _lm(lambda q: prob.solve(q)[1], prob.pack_outer(start))
+    m, _ = prob.solve(q, want_mapping=True)
+    assert m is not None
+    return m
+
+
+def _initial(uv: FloatArray, dirs: FloatArray, center: tuple[float, float]) -> PanoMapping:
+    """The dissertation's fit at ``center`` (Algorithm 1 with the fitted azimuth mapping)."""
+    from omnidev.panotable.table import fit_azimuth, fit_radial
+
+    x, y, z = dirs[:, 0], dirs[:, 1], dirs[:, 2]
+    theta, rho = np.arctan2(y, x), np.arctan2(z, np.hypot(x, y))
+    d = uv - np.asarray(center)
+    fit = fit_radial(rho, np.hypot(d[:, 0], d[:, 1]))
+    s, phi0, _ = fit_azimuth(theta, np.arctan2(d[:, 1], d[:, 0]))
+    return PanoMapping(fit.coeffs, center, s, phi0)
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """Held-out figures of one model order."""
+
+    terms: Terms
+    heldout_rms_px: float
+    heldout_p95_px: float
+    train_rms_px: float
+
+
+@dataclass(frozen=True)
+class GeneralFit:
+    """Result of :func:`fit_general`: the chosen mapping and how it was chosen."""
+
+    mapping: PanoMapping
+    terms: Terms
+    residual_px: FloatArray  # (n,) distance of each landmark from the model, px
+    heldout_px: FloatArray  # (n,) distance of each landmark from the fold's model that left it out
+    scores: tuple[CandidateScore, ...]
+
+    @property
+    def rms_px(self) -> float:
+        return float(np.sqrt(np.mean(self.residual_px**2)))
+
+    @property
+    def heldout_rms_px(self) -> float:
+        return float(np.sqrt(np.mean(self.heldout_px**2)))
+
+
+def _folds(n: int, groups: IntArray | None, k: int, seed: int) -> list[IntArray]:
+    if groups is not None:
+        uniq = np.unique(groups)
+        if len(uniq) >= 3:
+            order = np.random.default_rng(seed).permutation(uniq)
+            parts = np.array_split(order, min(k, len(uniq)))
+            return [np.flatnonzero(np.isin(groups, part)) for part in parts]
+    idx = np.random.default_rng(seed).permutation(n)
+    return [np.sort(a) for a in np.array_split(idx, k)]
+
+
+def fit_general(
+    uv: FloatArray,
+    dirs: FloatArray,
+    image_center: tuple[float, float],
+    *,
+    candidates: Sequence[Terms] = CANDIDATES,
+    groups: IntArray | None = None,
+    folds: int = 5,
+    tolerance: float = 0.05,
+    center_prior_px: float | None = None,
+    seed: int = 0,
+) -> GeneralFit:
+    """Fit the generalized mapping to landmarks; the model order is chosen by held-out residual.
+
+    Args:
+        uv: (n, 2) landmark pixels.
+        dirs: (n, 3) landmark directions from O_m in the world frame (any length).
+        image_center: starting image center (u0, v0) px (detected, or a guess).
+        candidates: model orders, simplest first; each is tried only when it has
+            at most half as many parameters as there are landmark coordinates.
+        groups: (n,) labels (e.g. the board of each corner); folds then leave out
+            whole groups, so a board's corners do not vouch for each other.
+        folds: number of cross-validation folds.
+        tolerance: the simplest order whose held-out RMS is within this fraction
+            of the best one's is chosen.
+        center_prior_px: the 1-sigma uncertainty of ``image_center`` when it was
+            measured (a detected center); None lets the landmarks alone decide.
+
+    Raises:
+        CalibrationError: fewer landmarks than the simplest order needs.
+    """
+    uv = np.asarray(uv, np.float64)
+    dirs = np.asarray(dirs, np.float64)
+    n = len(uv)
+    rho = np.arctan2(dirs[:, 2], np.hypot(dirs[:, 0], dirs[:, 1]))
+    lo, hi = float(np.min(rho)), float(np.max(rho))
+    mid, half = 0.5 * (lo + hi), max(0.5 * (hi - lo), 1e-3)
+    usable = [c for c in candidates if c.n_params() <= n]  # at most half the 2n equations
+    if not usable:
+        need = candidates[0].n_params()
+        raise CalibrationError(
+            f"{n} landmarks are too few for the generalized table (it needs at least {need}); "
+            "add landmarks (omnidev landmarks board collects hundreds) or use --model dissertation"
+        )
+    prior = None if center_prior_px is None else (image_center, float(center_prior_px))
+    fold_sets = _folds(n, groups, folds, seed)
+    trains = [np.setdiff1d(np.arange(n), test) for test in fold_sets]
+    fold_maps: list[PanoMapping | None] = []
+    for train in trains:
+        try:
+            fold_maps.append(_initial(uv[train], dirs[train], image_center))
+        except CalibrationError:
+            fold_maps.append(None)
+    fits: list[PanoMapping] = []
+    scores: list[CandidateScore] = []
+    helds: list[FloatArray] = []
+    m = _initial(uv, dirs, image_center)
+    worse = 0
+    for terms in usable:
+        h = np.full(n, np.nan)
+        for f, (test, train) in enumerate(zip(fold_sets, trains, strict=True)):
+            start = fold_maps[f]
+            if start is None or terms.n_params() > len(train):
+                continue
+            fm = _fit_one(
+                uv[train], dirs[train], terms, start, mid=mid, half=half, center_prior=prior
+            )
+            fold_maps[f] = fm
+            h[test] = np.hypot(*(fm.project_world(dirs[test]) - uv[test]).T)
+        m = _fit_one(uv, dirs, terms, m, mid=mid, half=half, center_prior=prior)
+        fits.append(m)
+        helds.append(h)
+        res = np.hypot(*(m.project_world(dirs) - uv).T)
+        ok = np.isfinite(h)
+        score = CandidateScore(
+            terms,
+            float(np.sqrt(np.mean(h**2))) if ok.all() else math.inf,
+            float(np.percentile(h, 95)) if ok.all() else math.inf,
+            float(np.sqrt(np.mean(res**2))),
+        )
+        best_so_far = min((x.heldout_rms_px for x in scores), default=math.inf)
+        scores.append(score)
+        worse = worse + 1 if score.heldout_rms_px >= best_so_far * (1 - 0.5 * tolerance) else 0
+        if worse >= 2:  # two larger orders in a row bought nothing: stop
+            break
+    cv = np.array([s.heldout_rms_px for s in scores])
+    best = float(np.min(cv))
+    if not math.isfinite(best):
+        chosen = 0
+    else:
+        chosen = int(np.flatnonzero(cv <= best * (1 + tolerance) + 1e-9)[0])
+    mapping = fits[chosen]
+    residual = np.hypot(*(mapping.project_world(dirs) - uv).T)
+    h = helds[chosen]
+    return GeneralFit(
+        mapping,
+        usable[chosen],
+        residual,
+        np.where(np.isfinite(h), h, residual),
+        tuple(scores),
+    )
+
+
+def diagnose(
+    fit_residual_px: FloatArray,
+    heldout_px: FloatArray,
+    distances: FloatArray,
+    rows: Sequence[int],
+    bound_px: float,
+    *,
+    mapping: PanoMapping | None = None,
+    uv: FloatArray | None = None,
+    offsets: FloatArray | None = None,
+) -> str | None:
+    """The likely cause when the held-out residual is over ``bound_px``; None when it is not.
+
+    Args:
+        fit_residual_px, heldout_px: (n,) per landmark.
+        distances: (n,) landmark distance from the mirror center (landmarks' unit).
+        rows: the landmarks' lines in their file (for the message).
+        mapping, uv, offsets: the fitted mapping, the (n, 2) pixels and the (n, 3)
+            landmark positions relative to the given mirror center; with them a
+            shift of the mirror center that would explain the residuals is sought.
+    """
+    rms = float(np.sqrt(np.mean(heldout_px**2)))
+    if rms <= bound_px:
+        return None
+    if mapping is not None and uv is not None and offsets is not None and len(uv) >= 8:
+        shift = _center_shift(mapping, uv, offsets)
+        if shift is not None:
+            delta, before, after = shift
+            return (
+                f"no model fits the landmarks: held-out RMS {rms:.2f} px > bound {bound_px:g} px; "
+                f"moving the mirror center by ({delta[0]:+.3g}, {delta[1]:+.3g}, {delta[2]:+.3g}) "
+                f"(landmarks' unit) would bring the fit RMS from {before:.2f} to {after:.2f} px: "
+                "the mirror center (--mirror-center) is probably off"
+            )
+    med = float(np.median(heldout_px))
+    worst = np.argsort(heldout_px)[::-1]
+    outliers = [int(i) for i in worst[:5] if heldout_px[i] > max(5 * med, 2 * bound_px)]
+    head = f"no model fits the landmarks: held-out RMS {rms:.2f} px > bound {bound_px:g} px; "
+    if len(distances) >= 8 and float(np.ptp(distances)) > 0.2 * float(np.median(distances)):
+        # Spearman-like: ranks, so that a few very near landmarks do not decide alone
+        a = np.argsort(np.argsort(-np.asarray(distances))).astype(float)
+        b = np.argsort(np.argsort(heldout_px)).astype(float)
+        c = float(np.corrcoef(a, b)[0, 1])
+        if c > 0.5:
+            return head + (
+                f"the residuals grow for near landmarks (rank correlation with nearness {c:.2f}): "
+                "the mirror center (--mirror-center) is probably off, or the camera is far "
+                "from single-viewpoint"
+            )
+    if outliers and len(outliers) <= max(1, len(heldout_px) // 10):
+        names = ", ".join(f"line {rows[i]} ({heldout_px[i]:.1f} px)" for i in outliers)
+        return head + (
+            f"landmark(s) {names} lie far from all others' model: mis-clicked or "
+            "mis-measured? fix or remove them"
+        )
+    return head + (
+        "the residuals are large everywhere: check that the world coordinates are Z-up in one "
+        "unit, that the pixels are of this camera's images (size, no crop or flip), and the "
+        "mirror center"
+    )
+
+
+def _center_shift(
+    mapping: PanoMapping, uv: FloatArray, offsets: FloatArray
+) -> tuple[FloatArray, float, float] | None:
+    """A mirror-center shift that explains the residuals, if it does: alternately a
+    Gauss-Newton step on the shift and a refit of the mapping (center, aspect, tilt)."""
+    delta = np.zeros(3)
+    before = float(np.sqrt(np.mean(np.sum((mapping.project_world(offsets) - uv) ** 2, 1))))
+    scale = float(np.median(np.linalg.norm(offsets, axis=1)))
+    mid, half = mapping.rho_norm
+    terms = Terms(aspect=True, tilt=True, degree=len(mapping.coeffs) - 1)
+    for it in range(6):
+        if it:
+            mapping = _fit_one(
+                uv, offsets - delta, terms, mapping, mid=mid, half=half, center_prior=None
+            )
+        r = (mapping.project_world(offsets - delta) - uv).ravel()
+        J = np.empty((len(r), 3))
+        h = 1e-4 * scale
+        for k in range(3):
+            e = np.zeros(3)
+            e[k] = h
+            J[:, k] = ((mapping.project_world(offsets - delta - e) - uv).ravel() - r) / h
+        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        delta = delta + step
+    after = float(np.sqrt(np.mean(np.sum((mapping.project_world(offsets - delta) - uv) ** 2, 1))))
+    if after < 0.5 * before and np.all(np.isfinite(delta)):
+        return delta, before, after
+    return None
+
+
+def with_terms(m: PanoMapping, **changes: object) -> PanoMapping:
+    """A copy of ``m`` with some attributes changed (for tests and tools)."""
+    return replace(m, **changes)  # type: ignore[arg-type]

@@ -1,0 +1,230 @@
+"""The generalized pano-mapping table: fit, refusals, files, fast maps (against exact cameras)."""
+
+from __future__ import annotations
+
+import dataclasses
+import gzip
+import math
+import tracemalloc
+
+import numpy as np
+import pytest
+
+import omnidev
+from omnidev.calibfile import read_kind, write_storage
+from omnidev.camera import build_maps, project_maps
+from omnidev.errors import CalibrationError
+from omnidev.panotable.camfile import PanoTableCamera, load_table, save_table
+from omnidev.panotable.general import fit_general
+from omnidev.panotable.table import calibrate, calibrate_general, dissertation_misfit
+from omnidev.sim.imperfect import ImperfectCamera, PolyFisheyeCamera, rotation_vector
+from omnidev.sim.mirrors import SvpHyperbolicCamera
+from omnidev.views import Panorama, Perspective, TopView
+
+
+def landmarks(cam, n: int, seed: int, noise: float = 0.0, dist=(1.0, 3.0)):
+    """n landmarks in directions the camera sees, at random distances; pixels exact + noise."""
+    rng = np.random.default_rng(seed)
+    lo, hi = cam.default_elevation_deg()
+    uv, xyz = [], []
+    while len(uv) < n:
+        th = rng.uniform(0, 2 * math.pi)
+        rho = math.radians(rng.uniform(lo + 0.5, hi - 0.5))
+        d = np.array([math.cos(rho) * math.cos(th), math.cos(rho) * math.sin(th), math.sin(rho)])
+        p = d * rng.uniform(*dist)
+        q, ok = cam.project(p[None], finite=True)
+        if ok[0]:
+            uv.append(q[0])
+            xyz.append(p)
+    return np.array(uv) + rng.normal(0, noise, (n, 2)), np.array(xyz)
+
+
+def truth_error(cam, mapping) -> tuple[float, float]:
+    """RMS and max pixel distance between the fitted mapping and the exact camera, px."""
+    lo, hi = cam.default_elevation_deg()
+    th, rho = np.meshgrid(
+        np.linspace(0, 2 * np.pi, 180), np.radians(np.linspace(lo + 0.5, hi - 0.5, 50))
+    )
+    d = np.stack([np.cos(rho) * np.cos(th), np.cos(rho) * np.sin(th), np.sin(rho)], -1)
+    uv, ok = cam.project(d.reshape(-1, 3), finite=False)
+    e = np.hypot(*(mapping.project_world(d.reshape(-1, 3)) - uv)[ok].T)
+    return float(np.sqrt(np.mean(e**2))), float(e.max())
+
+
+FISHEYE = PolyFisheyeCamera(290.0, -0.03, 0.004, (960, 960), (476.3, 482.9), math.radians(96))
+TILTED = ImperfectCamera(FISHEYE, rotation_vector(35.0, 7.0))
+_BASE = SvpHyperbolicCamera.default(960)
+SQUEEZED = ImperfectCamera(
+    dataclasses.replace(_BASE, image_size=(1280, 960), center=(641.7, 476.2)),
+    np.eye(3),
+    aspect=0.75,
+    center_px=(641.7, 356.9),
+    size=(1280, 720),
+)
+
+
+@pytest.mark.parametrize(
+    "cam,what", [(TILTED, "tilt"), (SQUEEZED, "aspect")], ids=["tilt", "aspect"]
+)
+def test_general_fit_recovers_tilt_and_aspect(cam, what):
+    uv, xyz = landmarks(cam, 100, seed=4, noise=0.2)
+    start = (cam.center[0] + 3.0, cam.center[1] - 2.0)
+    g = fit_general(uv, xyz, start)
+    m = g.mapping
+    rms, mx = truth_error(cam, m)
+    print(
+        f"{what}: kept {g.terms.describe()}, held-out {g.heldout_rms_px:.3f} px, "
+        f"truth {rms:.3f}/{mx:.3f}"
+    )
+    assert math.hypot(m.image_center[0] - cam.center[0], m.image_center[1] - cam.center[1]) < 0.3
+    if what == "tilt":
+        assert g.terms.tilt and abs(m.tilt_deg - 7.0) < 0.1
+    else:
+        assert g.terms.aspect and abs(m.aspect - 0.75) < 1e-3
+    assert g.heldout_rms_px < 0.35  # the landmarks' 0.2 px noise is 0.28 px in 2-D
+    assert rms < 0.15 and mx < 0.6
+    # the dissertation's table cannot absorb either, and says why
+    d = calibrate(uv, xyz, np.zeros(3), cam.center, cam.image_size)
+    assert np.sqrt(np.mean(d.reprojection_px**2)) > 5.0
+    assert "vary with azimuth" in dissertation_misfit(d, 2.0)
+
+
+def test_aligned_camera_keeps_the_simple_order():
+    """No aspect, tilt or harmonics are bought when the camera is the dissertation's."""
+    uv, xyz = landmarks(_BASE, 100, seed=2, noise=0.3)
+    g = fit_general(uv, xyz, (_BASE.center[0] - 2, _BASE.center[1] + 2))
+    assert not g.terms.tilt and g.terms.harmonics == 0
+    assert truth_error(_BASE, g.mapping)[0] < 0.15
+
+
+def test_few_landmarks_do_not_overfit():
+    """32 landmarks: the order stays small, the held-out residual honest."""
+    uv, xyz = landmarks(TILTED, 32, seed=9, noise=0.3)
+    g = fit_general(uv, xyz, (TILTED.center[0] + 2, TILTED.center[1]))
+    assert g.terms.n_params() <= 16
+    rms, _ = truth_error(TILTED, g.mapping)
+    assert rms < 0.35
+    assert g.heldout_rms_px < 0.6
+
+
+def test_refusal_names_the_outlier_line():
+    uv, xyz = landmarks(TILTED, 80, seed=1, noise=0.2)
+    uv[17] += (40.0, -25.0)
+    rows = list(range(2, 82))
+    with pytest.raises(CalibrationError, match="line 19"):
+        calibrate_general(
+            uv, xyz, np.zeros(3), TILTED.center, TILTED.image_size, max_heldout_px=2.0, rows=rows
+        )
+
+
+def test_refusal_names_a_wrong_mirror_center():
+    uv, xyz = landmarks(TILTED, 80, seed=3, noise=0.2, dist=(0.4, 4.0))
+    with pytest.raises(CalibrationError, match=r"moving the mirror center by .*--mirror-center"):
+        calibrate_general(
+            uv,
+            xyz,
+            np.array([0.08, -0.06, 0.05]),
+            TILTED.center,
+            TILTED.image_size,
+            max_heldout_px=1.0,
+        )
+
+
+def test_too_few_landmarks_is_a_clear_error():
+    uv, xyz = landmarks(TILTED, 6, seed=3)
+    with pytest.raises(CalibrationError, match="too few for the generalized table"):
+        fit_general(uv, xyz, TILTED.center)
+
+
+@pytest.fixture(scope="module")
+def general_table():
+    uv, xyz = landmarks(TILTED, 120, seed=5, noise=0.1)
+    return calibrate_general(uv, xyz, np.zeros(3), TILTED.center, TILTED.image_size)
+
+
+def test_format_2_file_is_small_and_rebuilds_the_table(tmp_path, general_table):
+    p = tmp_path / "cam.yml.gz"
+    save_table(p, general_table)
+    assert p.stat().st_size < 4000  # the definition, not 10^6 entries
+    assert read_kind(p) == "pano-table"
+    t = load_table(p)
+    assert t.method == "general" and t.tilt == general_table.table.tilt
+    np.testing.assert_allclose(t.table, general_table.table.table, atol=1e-3)
+    cam = omnidev.load_camera(p)
+    assert isinstance(cam, PanoTableCamera)
+    d = np.random.default_rng(0).normal(size=(500, 3))
+    d[:, 2] = np.abs(d[:, 2])
+    a, ok_a = cam.project(d, finite=False)
+    b, ok_b = PanoTableCamera(general_table.table).project(d, finite=False)
+    np.testing.assert_array_equal(ok_a, ok_b)
+    assert np.max(np.abs(a - b)[ok_a]) < 1e-3
+
+
+def test_format_1_files_keep_loading_with_their_table(tmp_path):
+    uv, xyz = landmarks(_BASE, 30, seed=1)
+    cal = calibrate(uv, xyz, np.zeros(3), _BASE.center, _BASE.image_size, table_size=(720, 120))
+    t = cal.table
+    stored = t.table.copy()
+    stored[5, 7] += (3.0, -2.0)  # a table not filled from its coefficients is used as stored
+    p = tmp_path / "old.yml.gz"
+    write_storage(
+        p,
+        "pano-table",
+        1,
+        {
+            "image_width": t.image_size[0],
+            "image_height": t.image_size[1],
+            "image_center": np.array(t.image_center).reshape(1, 2),
+            "radial_coeffs": t.coeffs.reshape(1, -1),
+            "rho_start_deg": math.degrees(t.rho_range[0]),
+            "rho_end_deg": math.degrees(t.rho_range[1]),
+            "M": t.M,
+            "N": t.N,
+            "azimuth_sign": t.azimuth_sign,
+            "azimuth_offset_deg": math.degrees(t.azimuth_offset),
+            "cutoff_radius": 0.0,
+            "table": stored,
+        },
+    )
+    with gzip.open(p, "rb") as fh:
+        assert b"kind: pano-table" in fh.read(200)
+    back = load_table(p)
+    np.testing.assert_allclose(back.table, stored, atol=1e-4)
+    p3 = tmp_path / "future.yml"
+    write_storage(p3, "pano-table", 3, {"M": 1})
+    with pytest.raises(CalibrationError, match="version 3; this omnidev reads versions 1, 2"):
+        load_table(p3)
+
+
+@pytest.mark.parametrize("lookup", ["bilinear", "nearest", "analytic"])
+@pytest.mark.parametrize("tilted", [False, True], ids=["level", "tilted"])
+def test_fast_maps_equal_the_point_route(lookup, tilted, general_table):
+    table = (
+        general_table.table if tilted else dataclasses.replace(general_table.table, tilt=(0.0, 0.0))
+    )
+    cam = PanoTableCamera(table, lookup)
+    for view in (Panorama(720, 180), Perspective(160, 120, 90, 40, 30), TopView(80, 80, 3, 3, 1.5)):
+        fast = build_maps(cam, view)
+        slow = project_maps(cam, view)
+        np.testing.assert_array_equal(fast.valid, slow.valid)
+        assert np.max(np.abs(fast.map_x - slow.map_x)[fast.valid], initial=0) < 2e-3
+        assert np.max(np.abs(fast.map_y - slow.map_y)[fast.valid], initial=0) < 2e-3
+
+
+@pytest.mark.parametrize("tilted", [False, True], ids=["level", "tilted"])
+def test_panorama_maps_take_at_most_32_bytes_per_pixel(tilted, general_table):
+    table = (
+        general_table.table if tilted else dataclasses.replace(general_table.table, tilt=(0.0, 0.0))
+    )
+    cam = PanoTableCamera(table)
+    table.padded  # noqa: B018  (the table belongs to the loaded camera, not to map building)
+    view = Panorama(2048, 512)
+    tracemalloc.start()
+    base = tracemalloc.get_traced_memory()[0]
+    maps = build_maps(cam, view)
+    peak = tracemalloc.get_traced_memory()[1] - base
+    tracemalloc.stop()
+    per_px = peak / (2048 * 512)
+    print(f"{'tilted' if tilted else 'level'} panorama maps: {per_px:.1f} bytes per output pixel")
+    assert maps.valid.mean() > 0.9
+    assert per_px <= 32.0
