@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import gzip
 import re
+import zlib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -36,6 +37,10 @@ def open_storage(path: Path) -> Iterator[cv2.FileStorage]:
         data = read_gzip(path, what, error=CalibrationError)
     else:
         data = read_bytes(path, what, error=CalibrationError)  # a regular file, not huge
+    nul = data.find(b"\0")
+    if nul >= 0:  # cv2.FileStorage would stop reading there and take the rest as absent
+        line = data.count(b"\n", 0, nul) + 1
+        raise CalibrationError(f"{path}: line {line}: a NUL byte; not a {what} (a binary file?)")
     text = data.decode("latin-1")
     check_nesting(text, path, what, CalibrationError)
     _check_matrix_headers(text, path)
@@ -129,8 +134,8 @@ def _peek_kind(path: Path) -> str | None:
         else:
             with path.open("rb") as fh:
                 head = fh.read(PEEK_BYTES)
-    except (OSError, EOFError, gzip.BadGzipFile):
-        return None
+    except (OSError, EOFError, gzip.BadGzipFile, zlib.error):
+        return None  # open_storage reads the whole file and says what is wrong with it
     for pat in _KIND_PATTERNS:
         m = pat.search(head)
         if m is not None:

@@ -90,6 +90,7 @@ class Outcome:
     seconds: float
     maxrss_kb: int
     stderr: str
+    cpu: float = 0.0
 
     def describe(self) -> str:
         last = [ln for ln in self.stderr.strip().splitlines() if ln.strip()][-6:]
@@ -246,6 +247,7 @@ def run_cases(pool: ServerPool, cases: Iterable[Case], workdir: Path) -> list[Ou
                 reply["seconds"],
                 reply["maxrss_kb"],
                 reply["stderr"],
+                reply.get("cpu", 0.0),
             )
         )
     for i in range(len(cases)):
@@ -277,5 +279,10 @@ def summary(outcomes: Sequence[Outcome]) -> str:
     rows.append(f"{'total':<{width}} {n:>6} " + " ".join(f"{total[c]:>9}" for c in CLASSES))
     worst = max((o.maxrss_kb for o in outcomes), default=0) / 1024
     slowest = max((o.seconds for o in outcomes), default=0.0)
-    rows.append(f"peak memory of a case {worst:.0f} MiB; slowest case {slowest:.1f} s")
+    cpu = sum(o.cpu for o in outcomes)
+    wall = sum(o.seconds for o in outcomes)
+    rows.append(
+        f"peak memory of a case {worst:.0f} MiB; slowest case {slowest:.1f} s; cases took "
+        f"{wall:.0f} s wall, {cpu:.0f} s CPU in all"
+    )
     return "\n".join(rows)

@@ -115,3 +115,26 @@ def variants(
             yield Variant(f"{where} -> {name}", v, "refuse" if numbers_refuse else "any")
         for name, value in EXTREME.items():
             yield Variant(f"{where} -> {name}", seed[: m.start()] + value + seed[m.end() :], "any")
+
+
+KEY_LINE = re.compile(
+    rb"^([ \t]*)([A-Za-z_][\w.]*)([ \t]*:[ \t]*)(-?[\d.]+(?:[eE][-+]?\d+)?)[ \t]*$", re.M
+)
+"""A ``key: number`` line of a YAML file (top level or indented)."""
+KEY_VALUES: tuple[tuple[str, bytes, Expect], ...] = (
+    ("NaN", b".nan", "refuse"),
+    ("-1", b"-1", "any"),
+    ("1e9", b"1.0e+9", "any"),
+)
+"""What every number key of a calibration file is set to (NaN must be refused)."""
+
+
+def key_variants(seed: bytes, skip: tuple[str, ...] = ("rows", "cols")) -> Iterator[Variant]:
+    """The seed with each ``key: number`` value replaced by each of :data:`KEY_VALUES`."""
+    for m in KEY_LINE.finditer(seed):
+        key = m.group(2).decode()
+        if key in skip:
+            continue
+        for name, value, expect in KEY_VALUES:
+            blob = seed[: m.start(4)] + value + seed[m.end(4) :]
+            yield Variant(f"key {key} -> {name}", blob, expect)

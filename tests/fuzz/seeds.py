@@ -42,11 +42,53 @@ def _pano_table(root: Path) -> None:
     for name in ("cam.yml", "cam.yml.gz"):
         argv = [
             "calibrate", "pano-table", str(FIXTURES / "omni_room" / "landmarks.csv"),
-            "--mirror-center", center, "--image-center", "320,320", "--image-size", "640x640",
+            "--mirror-center", center, "--image-center", "322.9,317.4", "--image-size", "640x640",
             "--table-size", "48x24", "-o", str(root / name), "--plot", str(root / "fit.png"),
             "--force",
         ]  # fmt: skip
         assert main(argv) == 0
+
+
+def _pano_table_more(root: Path) -> None:
+    """A format-1 table file (stored table) and a generalized table from board landmarks."""
+    from omnidev.cli.main import main
+    from omnidev.panotable.camfile import load_table, save_table
+
+    save_table(root / "cam_v1.yml", load_table(root / "cam.yml"), store_table=True, force=True)
+    text = (root / "cam_v1.yml").read_text().replace("format_version: 2", "format_version: 1")
+    (root / "cam_v1.yml").write_text(text)
+    argv = ["calibrate", "pano-table", str(root / "boards.csv"), "--mirror-center",
+            "0.3,-0.2,1.2", "--image-center", "320,320", "--image-size", "640x640",
+            "--model", "general", "--table-size", "48x24", "-o", str(root / "cam_general.yml"),
+            "--force"]  # fmt: skip
+    assert main(argv) == 0
+
+
+def _boards(root: Path) -> None:
+    """Two small ChArUco boards near a rendered mirror camera: shot.png, boards.toml and the
+    landmark CSV (with groups) that ``omnidev landmarks board`` makes of them."""
+    from omnidev.cli.main import main
+    from omnidev.sim import RoomScene, SvpHyperbolicCamera, render_omni
+    from omnidev.sim.boards import BoardScene, boards_around
+
+    room = RoomScene(301)
+    boards = boards_around(room, 2, seed=301, distance=0.6, pattern="charuco:5x4,80,60,DICT_4X4_50")
+    cam = SvpHyperbolicCamera.default(640)
+    img = render_omni(cam, BoardScene(room, boards), supersample=1, noise_sigma=2.0, seed=1)
+    cv2.imwrite(str(root / "shot.png"), img)
+    rig = []
+    for b in boards:
+        w, h = b.pattern.size_mm()
+        o, x, y = b.origin, b.world(np.array([[w, 0.0]]))[0], b.world(np.array([[0.0, h]]))[0]
+        rig += ["[[board]]", f'pattern = "{b.pattern.describe()}"',
+                f"first_marker = {b.first_marker}",
+                f"origin = [{o[0]:.6f}, {o[1]:.6f}, {o[2]:.6f}]",
+                f"x_end = [{x[0]:.6f}, {x[1]:.6f}, {x[2]:.6f}]",
+                f"y_end = [{y[0]:.6f}, {y[1]:.6f}, {y[2]:.6f}]"]  # fmt: skip
+    (root / "boards.toml").write_text("\n".join(rig) + "\n")
+    argv = ["landmarks", "board", str(root / "shot.png"), "--boards", str(root / "boards.toml"),
+            "-o", str(root / "boards.csv"), "--force"]  # fmt: skip
+    assert main(argv) == 0
 
 
 def _fisheye(root: Path) -> None:
@@ -219,7 +261,9 @@ def _images(root: Path) -> None:
 def make_seeds(root: Path) -> Seeds:
     """Write every seed into ``root`` (made world-readable for the unprivileged cases)."""
     root.mkdir(parents=True, exist_ok=True)
-    for make in (_pano_table, _fisheye, _nonsvp, _screen, _daemon, _replay, _mouse, _images):
+    makers = (_pano_table, _boards, _pano_table_more, _fisheye, _nonsvp, _screen, _daemon,
+              _replay, _mouse, _images)  # fmt: skip
+    for make in makers:
         make(root)
     for p in [root, *root.rglob("*")]:
         p.chmod(0o755 if p.is_dir() else 0o644)

@@ -15,7 +15,8 @@ instead of the ~1 s of a fresh interpreter importing OpenCV.
 Request: ``{"id": N, "argv": [...], "cwd": DIR, "timeout": S, "uid": U or null,
 "mem_extra_bytes": B (address space allowed above the server's), "stdin": PATH or null}``.
 Reply: ``{"id": N, "rc": int or null, "signal": int or null, "timed_out": bool,
-"maxrss_kb": int, "seconds": float, "stderr": str, "stdout": str}``.
+"maxrss_kb": int, "seconds": float, "cpu": float (user + system seconds), "stderr": str,
+"stdout": str}``.
 """
 
 from __future__ import annotations
@@ -143,6 +144,7 @@ def _run(req: dict) -> dict:
         "timed_out": timed_out,
         "maxrss_kb": int(usage.ru_maxrss) if usage is not None else 0,
         "seconds": round(seconds, 4),
+        "cpu": round(usage.ru_utime + usage.ru_stime, 4) if usage is not None else 0.0,
         "stderr": _tail(err_path),
         "stdout": _tail(out_path, 1000),
     }
