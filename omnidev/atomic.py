@@ -1,7 +1,7 @@
 """Atomic output: write to a temporary name beside the target, then put it in place at once.
 
 Rules every output of omnidev follows (files through :func:`atomic_path`,
-videos through :class:`omnidev.writers.FrameWriter`, folders through
+videos and pipes through the outputs (omnidev.outputs.files, .pipe), folders through
 :func:`atomic_dir`):
 
 - The data goes to a temporary ``.NAME.omnidev-PID-XXXX.EXT`` beside the

@@ -19,6 +19,11 @@ class SourceError(OmnidevError):
     """A frame source that cannot be opened or stopped delivering."""
 
 
+class FileSourceError(SourceError):
+    """A recorded source (a video file, an image set) that is missing, unreadable,
+    truncated or corrupt: final, never retried as an unplugged camera would be."""
+
+
 class PluginError(OmnidevError):
     """A plugin that is unknown, broken, or registered twice."""
 

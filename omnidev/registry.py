@@ -1,4 +1,4 @@
-"""The plugin registry: Python entry points in four groups.
+"""The plugin registry: Python entry points in five groups.
 
 | group               | entry-point name        | the object it loads                          |
 |---------------------|-------------------------|----------------------------------------------|
@@ -6,6 +6,7 @@
 | ``omnidev.unwarpers`` | calibration kind      | an :class:`~omnidev.camera.Unwarper` class |
 | ``omnidev.trackers`` | tracker name           | a tracker factory                            |
 | ``omnidev.sinks``   | sink name               | a sink factory                               |
+| ``omnidev.outputs`` | URI scheme (``v4l2``)   | a callable ``open(rest, options, spec)``     |
 
 First-party plugins register exactly as a vendor's would. A plugin that fails
 to import is reported as broken (with its error) and the others keep working;
@@ -22,7 +23,13 @@ from typing import Any
 
 from omnidev.errors import PluginError
 
-GROUPS = ("omnidev.sources", "omnidev.unwarpers", "omnidev.trackers", "omnidev.sinks")
+GROUPS = (
+    "omnidev.sources",
+    "omnidev.unwarpers",
+    "omnidev.trackers",
+    "omnidev.sinks",
+    "omnidev.outputs",
+)
 
 
 @dataclass(frozen=True)
@@ -122,5 +129,6 @@ def get(group: str, name: str) -> Any:
         "omnidev.sources": "source scheme",
         "omnidev.trackers": "tracker",
         "omnidev.sinks": "sink",
+        "omnidev.outputs": "output scheme",
     }.get(group, "plugin")
     raise PluginError(f"no plugin for {kind} {name!r} in {group}; installed: {installed}")

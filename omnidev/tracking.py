@@ -25,7 +25,8 @@ class Tracker(Protocol):
     """Turns frames into pointer samples (normalized target-screen coordinates)."""
 
     def track(self, frame: Frame) -> PointerSample | None:
-        """The pointer for this frame, with ``timestamp_ns`` = the frame's capture time."""
+        """The pointer for this frame, with ``timestamp_ns`` = the frame's ``timestamp_ns``
+        (a camera's capture time, a file's presentation time)."""
         ...
 
     def reset(self) -> None:

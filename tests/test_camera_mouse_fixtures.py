@@ -18,6 +18,7 @@ deliberately not the truth).
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -111,10 +112,18 @@ def test_mouse_cli_on_a_fixture_into_record(tmp_path, capsys, caplog):
     assert not [r for r in caplog.records if "retrying" in r.getMessage()]
     truth = json.loads((fx / "truth.json").read_text())["per_frame"]
     moves = [e for e in read_events(rec) if e["kind"] == "move"]
-    assert len(moves) == len(truth)  # every frame gave a cursor, none dropped
+    # paced at 30 fps the source is live: a frame the tracker was too slow for (a loaded
+    # machine) is dropped and counted; every other frame gave a cursor, named by index
+    summary = re.search(r"(\d+) frames, (\d+) dropped", capsys.readouterr().err)
+    assert summary is not None and int(summary[1]) == len(truth)
+    assert len(moves) + int(summary[2]) == len(truth) and len(moves) >= 0.8 * len(truth)
+    frames = [m["frame"] for m in moves]
+    assert frames == sorted(set(frames))
     err = [
-        np.hypot((m["x"] - t["screen_xy"][0]) * 1919, (m["y"] - t["screen_xy"][1]) * 1079)
-        for m, t in zip(moves, truth, strict=True)
+        np.hypot(
+            (m["x"] - truth[i]["screen_xy"][0]) * 1919, (m["y"] - truth[i]["screen_xy"][1]) * 1079
+        )
+        for m, i in zip(moves, frames, strict=True)
     ]
     rms = float(np.sqrt(np.mean(np.square(err))))
     print(f"\nomnidev mouse on {fx.name} into record: RMS {rms:.2f} px, max {max(err):.2f} px")

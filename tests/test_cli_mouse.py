@@ -103,8 +103,10 @@ def test_mouse_cli_dwell_click_on_a_still_hand(tmp_path, capsys):
     assert "1 dwell clicks" in capsys.readouterr().err
     events = list(read_events(rec))
     moves = [e for e in events if e["kind"] == "move"]
-    buttons = [(e["button"], e["down"], e["t_ns"]) for e in events if e["kind"] == "button"]
+    buttons = [(e["button"], e["down"], e["frame_ns"]) for e in events if e["kind"] == "button"]
     assert [(b, d) for b, d, _ in buttons] == [("left", True), ("left", False)]
-    rested = (buttons[0][2] - moves[0]["t_ns"]) / 1e9
+    # on the frames' timestamps, which the dwell runs on (the write times of a loaded
+    # machine can bunch up)
+    rested = (buttons[0][2] - moves[0]["frame_ns"]) / 1e9
     print(f"\ndwell click {rested:.2f} s after the first cursor position (dwell 0.8 s)")
-    assert 0.75 <= rested <= 1.3
+    assert 0.8 <= rested <= 1.3

@@ -274,18 +274,29 @@ def test_record_writes_one_json_line_per_event(tmp_path):
     with open_record({"path": str(path)}, MAPPING) as sink:
         sink.move(2.0, 0.5)
         sink.press("middle")
-        sink.emit(PointerSample(0.25, 0.75, timestamp_ns=123_456))
+        sink.emit(PointerSample(0.25, 0.75, timestamp_ns=123_456, frame_index=7))
+        sink.emit(PointerSample(0.5, 0.5, 200_000, buttons=frozenset({"left"}), frame_index=8))
     lines = path.read_text().splitlines()
     events = [json.loads(line) for line in lines]
     assert all(" " not in line for line in lines)  # compact
     times = [e.pop("t_ns") for e in events]
     assert times == sorted(times) and all(isinstance(t, int) for t in times)
     assert events == [
-        {"kind": "open", "screen": [0, 0, 1920, 1080], "layout": [1920, 1080]},
+        {"kind": "open", "format": 2, "screen": [0, 0, 1920, 1080], "layout": [1920, 1080]},
         {"kind": "move", "x": 1.0, "y": 0.5, "pixel": [1919, 540]},
         {"kind": "button", "button": "middle", "down": True},
-        {"kind": "move", "x": 0.25, "y": 0.75, "pixel": [480, 809], "capture_ns": 123_456},
-        {"kind": "button", "button": "middle", "down": False},
+        {
+            "kind": "move",
+            "x": 0.25,
+            "y": 0.75,
+            "pixel": [480, 809],
+            "frame": 7,
+            "frame_ns": 123_456,
+        },
+        {"kind": "button", "button": "middle", "down": False, "frame": 7, "frame_ns": 123_456},
+        {"kind": "move", "x": 0.5, "y": 0.5, "pixel": [960, 540], "frame": 8, "frame_ns": 200_000},
+        {"kind": "button", "button": "left", "down": True, "frame": 8, "frame_ns": 200_000},
+        {"kind": "button", "button": "left", "down": False},
         {"kind": "close"},
     ]
 

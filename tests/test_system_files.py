@@ -436,7 +436,7 @@ def test_rules_pass_udevs_own_parser(installed, tmp_path):
     # the check can fail: udev names the bad file and line
     assert "/etc/udev/rules.d/60-bad.rules:1 Invalid key 'BOGUS'" in udevadm_test(bad)
     out = udevadm_test(rules_dir)
-    for name in ("60-omnidev.rules", "61-omnidev-camera.rules"):
+    for name in ("60-omnidev.rules", "61-omnidev-camera.rules", "62-omnidev-v4l2loopback.rules"):
         assert f"Reading rules file: /etc/udev/rules.d/{name}" in out
         problems = [ln for ln in out.splitlines() if ln.startswith(f"/etc/udev/rules.d/{name}:")]
         assert problems == [], problems

@@ -15,6 +15,7 @@ from omnidev.budget import check_pixels
 from omnidev.cli.options import parse_floats, parse_size
 from omnidev.errors import CalibrationError
 from omnidev.imagefile import read_image
+from omnidev.inputfile import read_json
 from omnidev.panotable.camfile import save_table
 from omnidev.panotable.center import detect_image_center
 from omnidev.panotable.landmarks import read_landmarks_csv
@@ -283,6 +284,19 @@ def _register_screen(csub: Any) -> None:
     sc.add_argument("--black", type=Path, help="captured image of the black pattern")
     sc.add_argument("--dots", type=Path, help="captured image of the dot-matrix pattern")
     sc.add_argument("--n", type=int, default=9, help="dots per row and column (default 9)")
+    sc.add_argument("--rows", type=int, help="dot rows (default --n)")
+    sc.add_argument("--cols", type=int, help="dot columns (default --n)")
+    sc.add_argument(
+        "--margin",
+        metavar="F[,FY]",
+        help="outer dots' distance from the screen edge as a fraction of its width "
+        "(and height); default one dot spacing",
+    )
+    sc.add_argument(
+        "--layout",
+        type=Path,
+        help="the dot layout file --write-patterns wrote (layout.json): rows, columns, margins",
+    )
     sc.add_argument("--screen", metavar="WxH", help="screen resolution (default 1920x1080)")
     from omnidev.screencal.calibration import DEFAULT_METHOD, METHODS
 
@@ -292,12 +306,25 @@ def _register_screen(csub: Any) -> None:
         metavar="|".join(METHODS),
         help=f"image -> screen method: {', '.join(METHODS)} (default {DEFAULT_METHOD})",
     )
+    sc.add_argument(
+        "--border",
+        choices=("region", "tdm"),
+        default="region",
+        help="screen border from the white-minus-black region (default) or the "
+        "dissertation's TDM scan windows",
+    )
     sc.add_argument("-o", "--output", type=Path, help="calibration file (.yml or .yml.gz)")
-    sc.add_argument("--plot", type=Path, help="PNG of the error vectors (needs --truth)")
+    sc.add_argument(
+        "--plot",
+        type=Path,
+        help="PNG: the border, the dots and the calibrated screen grid over the dot image "
+        "(with --truth: every method's error vectors)",
+    )
     sc.add_argument(
         "--truth",
         type=Path,
-        help="a rendered fixture's truth.json: print every method's error on held-out points",
+        help="truth JSON (image_points / screen_points pairs, or a rendered fixture's "
+        "truth.json): print every method's error on its points",
     )
     sc.add_argument(
         "--recaptured", type=Path, help="a re-captured dot image to evaluate (Fig. 5.14)"
@@ -323,7 +350,46 @@ def _write_png(path: Path, image: np.ndarray[Any, Any], force: bool) -> None:
 
 
 def _read_grey(path: Path, what: str) -> np.ndarray[Any, Any]:
-    return read_image(path, f"{what} image", grey=True, error=CalibrationError)
+    """An image file as the API sees it: read as BGR (header checked before decoding),
+    converted by screencal's to_gray."""
+    from omnidev.screencal.features import to_gray
+
+    img = read_image(path, f"{what} image", error=CalibrationError)
+    return to_gray(np.asarray(img, np.uint8))
+
+
+def _layout(args: argparse.Namespace, size: tuple[int, int]) -> Any:
+    """The dot layout from --layout, or --rows/--cols/--n and --margin."""
+    from omnidev.screencal.patterns import dot_grid, layout_from_dict
+
+    if args.layout is not None:
+        if args.rows or args.cols or args.margin:
+            raise CalibrationError("give --layout or --rows/--cols/--margin, not both")
+        doc = read_json(args.layout, "JSON layout file", error=CalibrationError)
+        if not isinstance(doc, dict):
+            raise CalibrationError(f"{args.layout}: not a JSON layout object")
+        try:
+            lay = layout_from_dict(doc, str(args.layout))
+        except ValueError as exc:
+            raise CalibrationError(str(exc)) from None
+        if args.screen and lay.screen_px != size:
+            raise CalibrationError(
+                f"--screen {size[0]}x{size[1]} but {args.layout} is for "
+                f"{lay.screen_px[0]}x{lay.screen_px[1]}"
+            )
+        return lay
+    margin = None
+    if args.margin:
+        vals = parse_floats(args.margin, 2 if "," in args.margin else 1, "--margin")
+        margin = (vals[0], vals[-1])
+    rows = args.rows or args.n
+    cols = args.cols or args.n
+    if not (2 <= rows <= 64 and 2 <= cols <= 64):
+        raise CalibrationError(f"dot layout {rows} x {cols}: give 2..64 dots per row and column")
+    try:
+        return dot_grid(size[0], size[1], rows=rows, cols=cols, margin=margin)
+    except ValueError as exc:
+        raise CalibrationError(f"dot layout: {exc}") from None
 
 
 def _capture(args: argparse.Namespace, size: tuple[int, int]) -> list[np.ndarray[Any, Any]]:
@@ -343,7 +409,7 @@ def _capture(args: argparse.Namespace, size: tuple[int, int]) -> list[np.ndarray
         patterns = (
             ("white", white_pattern(w, h)),
             ("black", black_pattern(w, h)),
-            ("dots", dot_pattern(w, h, args.n)[0]),
+            ("dots", dot_pattern(w, h, layout=_layout(args, (w, h)))[0]),
         )
         for name, pat in patterns:
             print(f"showing the {name} pattern on {args.show} ({w}x{h}); capturing", flush=True)
@@ -354,9 +420,9 @@ def _capture(args: argparse.Namespace, size: tuple[int, int]) -> list[np.ndarray
                 if frame is None:
                     raise CalibrationError(f"{args.source}: no more frames while capturing {name}")
                 if k >= args.settle:
-                    g = np.asarray(frame.image, np.float64)
-                    if g.ndim == 3:
-                        g = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY).astype(np.float64)
+                    from omnidev.screencal.features import to_gray
+
+                    g = to_gray(np.asarray(frame.image, np.uint8)).astype(np.float64)
                     acc = g if acc is None else acc + g
             assert acc is not None
             shots.append(np.clip(acc / max(args.average, 1) + 0.5, 0, 255).astype(np.uint8))
@@ -372,16 +438,20 @@ def run_screen(args: argparse.Namespace) -> int:
         fit_calibration,
     )
 
-    size = parse_size(args.screen, "--screen", maximum=16384) if args.screen else (1920, 1080)
-    method = DEFAULT_METHOD if args.method is None else args.method
+    size = parse_size(args.screen, "--screen", maximum=16384) if args.screen else None
+    method = args.method or DEFAULT_METHOD
     if method not in METHODS:
         raise CalibrationError(f"--method {method!r}: choose from {', '.join(METHODS)}")
     if not 2 <= args.n <= 64:
         raise CalibrationError(f"--n {args.n}: give 2..64 dots per row")
     if args.settle < 0 or args.average < 1:
         raise CalibrationError("--settle must be >= 0 and --average >= 1 frames")
+    layout = _layout(args, size or (1920, 1080))
+    size = layout.screen_px
     check_pixels(size[0], size[1], 12, f"patterns of a {size[0]}x{size[1]} screen")
     if args.write_patterns is not None:
+        import json
+
         from omnidev.atomic import atomic_dir
         from omnidev.screencal.patterns import black_pattern, dot_pattern, white_pattern
 
@@ -389,9 +459,10 @@ def run_screen(args: argparse.Namespace) -> int:
         with atomic_dir(args.write_patterns, force=args.force) as tmp:
             _write_png(tmp / "white.png", white_pattern(w, h), True)
             _write_png(tmp / "black.png", black_pattern(w, h), True)
-            _write_png(tmp / "dots.png", dot_pattern(w, h, args.n)[0], True)
-        for name in ("white", "black", "dots"):
-            print(f"wrote {args.write_patterns / (name + '.png')} ({w}x{h})")
+            _write_png(tmp / "dots.png", dot_pattern(w, h, layout=layout)[0], True)
+            (tmp / "layout.json").write_text(json.dumps(layout.to_dict(), indent=1) + "\n")
+        for name in ("white.png", "black.png", "dots.png", "layout.json"):
+            print(f"wrote {args.write_patterns / name} ({w}x{h}, {layout.describe()})")
         if args.output is None:
             return 0
     if args.output is None:
@@ -399,8 +470,7 @@ def run_screen(args: argparse.Namespace) -> int:
     check_output(args.output, force=args.force)
     if args.plot is not None:
         check_output(args.plot, force=args.force)
-        if args.truth is None:
-            raise CalibrationError("--plot needs --truth (a rendered fixture's truth.json)")
+    truth = _read_truth(args.truth) if args.truth is not None else None
     if args.show:
         white, black, dots = _capture(args, size)
         if args.save_captures is not None:
@@ -420,54 +490,107 @@ def run_screen(args: argparse.Namespace) -> int:
         white = _read_grey(args.white, "white")
         black = _read_grey(args.black, "black")
         dots = _read_grey(args.dots, "dot-matrix")
-    print("finding the screen border and the dots ...", flush=True)
-    features = detect_screen(white, black, dots, n=args.n, screen_size=size)
+    print(f"finding the screen border and the dots ({layout.describe()}) ...", flush=True)
+    features = detect_screen(white, black, dots, layout=layout, border=args.border)
     calib = fit_calibration(features, method)
     v = features.border.vertices
     print(
         "screen border polygon P0..P7 (image px): " + " ".join(f"({x:.1f},{y:.1f})" for x, y in v)
     )
-    print(f"dots used: {calib.dots_used} of {args.n * args.n}; method {method}")
-    if args.truth is not None:
-        _compare(args, features, size)
+    print(f"dots used: {calib.dots_used} of {layout.count}; method {method}")
+    if truth is not None:
+        _compare(args, features, size, truth)
+    elif args.plot is not None:
+        from omnidev.screencal.plots import plot_calibration
+
+        plot_calibration(calib, dots, args.plot, force=args.force)
+        print(f"wrote {args.plot}")
     calib.save(args.output, force=args.force)
     print(f"wrote {args.output}")
     return 0
 
 
-def _compare(args: argparse.Namespace, features: Any, size: tuple[int, int]) -> None:
-    """Every method's error against a rendered fixture's exact mapping (and Fig. 5.14)."""
-    from omnidev.screencal.calibration import METHODS, fit_calibration
-    from omnidev.screencal.evaluate import MethodErrors, compare_methods, heldout_grid, table
-    from omnidev.screencal.plots import plot_error_vectors
-    from omnidev.sim.screen import load_screen_fixture, screen_to_image
+def _read_truth(path: Path) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]:
+    """Truth pairs (image px (N, 2), screen px (N, 2)) from a JSON file: either
+    ``{"image_points": [[u, v], ...], "screen_points": [[x, y], ...]}`` (any source),
+    or the truth.json of an ``omnidev sim screen`` fixture (its rig: held-out points
+    every 20 screen px). Errors name the file and the key."""
+    import json
 
-    rig, _ = load_screen_fixture(args.truth.parent)
-    xy = heldout_grid(size)
-    uv = screen_to_image(rig, xy)
+    try:
+        doc = json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise CalibrationError(f"{path}: no such truth file") from None
+    except (OSError, ValueError) as exc:
+        raise CalibrationError(f"{path}: not a JSON truth file ({exc})") from None
+    if not isinstance(doc, dict):
+        raise CalibrationError(f"{path}: a truth file is a JSON object")
+    if "image_points" in doc or "screen_points" in doc:
+        arrs = []
+        for key in ("image_points", "screen_points"):
+            if key not in doc:
+                raise CalibrationError(f"{path}: missing key {key!r} (pairs of [x, y])")
+            try:
+                a = np.asarray(doc[key], np.float64).reshape(-1, 2)
+            except (TypeError, ValueError):
+                raise CalibrationError(f"{path}: key {key!r} must be a list of [x, y]") from None
+            arrs.append(a)
+        if len(arrs[0]) != len(arrs[1]) or len(arrs[0]) == 0:
+            raise CalibrationError(
+                f"{path}: 'image_points' ({len(arrs[0])}) and 'screen_points' "
+                f"({len(arrs[1])}) must be equally long and not empty"
+            )
+        ok = np.isfinite(arrs[0]).all(axis=1) & np.isfinite(arrs[1]).all(axis=1)
+        return arrs[0][ok], arrs[1][ok]
+    if "rig" in doc:
+        from omnidev.screencal.evaluate import heldout_grid
+        from omnidev.sim.screen import ScreenRig, screen_to_image
+
+        try:
+            rig = ScreenRig.from_dict(doc["rig"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CalibrationError(f"{path}: key 'rig' is not a screen rig ({exc})") from None
+        xy = heldout_grid(rig.screen_px)
+        return screen_to_image(rig, xy), xy
+    raise CalibrationError(
+        f"{path}: a truth file needs 'image_points' and 'screen_points' "
+        "(or a rendered fixture's 'rig'); see docs/screen-calibration.md"
+    )
+
+
+def _compare(
+    args: argparse.Namespace,
+    features: Any,
+    size: tuple[int, int],
+    truth: tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]],
+) -> None:
+    """Every method's error on the truth pairs (and Fig. 5.14 with --recaptured)."""
+    from omnidev.screencal.calibration import METHODS, detect_screen, fit_calibration
+    from omnidev.screencal.evaluate import MethodErrors, compare_methods, table
+    from omnidev.screencal.plots import plot_error_vectors
+
+    uv, xy = truth
     rows = compare_methods(features, uv, xy)
-    print(f"held-out screen points: {len(xy)} (every 20 px, border pixels included)")
+    print(f"truth points: {len(xy)} from {args.truth}")
     print(table(rows))
     if args.plot is not None:
         plot_error_vectors(
             rows,
             args.plot,
             size,
-            title=f"held-out points, {args.truth.parent.name}",
+            title=f"truth points, {args.truth.name}",
             dots=features.screen_dots,
             force=args.force,
         )
         print(f"wrote {args.plot}")
     if args.recaptured is not None:
-        from omnidev.screencal.calibration import detect_screen
-
         d2 = _read_grey(args.recaptured, "re-captured dot")
         again = detect_screen(
             _read_grey(args.white, "white"),
             _read_grey(args.black, "black"),
             d2,
-            n=args.n,
-            screen_size=size,
+            layout=features.layout,
+            border=args.border,
         )
         ok = again.dots.found
         rec = [

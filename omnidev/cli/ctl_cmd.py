@@ -106,9 +106,18 @@ def format_status(reply: dict[str, Any]) -> str:
     events:          1197
     camera retries:  0
     uptime:          00:01:05
+    >>> print(format_status({"frames": 500, "dropped_frames": 0, "source_kind": "recorded"}))
+    ... # doctest: +ELLIPSIS
+    state:...
+    frames:          500 (dropped 0; a file: the reader waits for the tracker)
+    ...
     """
     frames = _num(reply.get("frames"), "d")
     dropped = _num(reply.get("dropped_frames"), "d")
+    policy = {
+        "live": "; live: the oldest frame is dropped when the tracker is behind",
+        "recorded": "; a file: the reader waits for the tracker",
+    }.get(str(reply.get("source_kind")), "")
     rows = [
         ("state", str(reply.get("state", "-"))),
         ("source", str(reply.get("source", "-"))),
@@ -120,7 +129,7 @@ def format_status(reply: dict[str, Any]) -> str:
             f"p50 {_num(reply.get('latency_p50_ms'), '.2f', ' ms')}, "
             f"p99 {_num(reply.get('latency_p99_ms'), '.2f', ' ms')}",
         ),
-        ("frames", f"{frames} (dropped {dropped})"),
+        ("frames", f"{frames} (dropped {dropped}{policy})"),
         ("events", _num(reply.get("events"), "d")),
         ("camera retries", _num(reply.get("camera_retries"), "d")),
         ("uptime", format_duration(reply.get("uptime_s"))),

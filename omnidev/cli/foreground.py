@@ -1,6 +1,12 @@
 """Running a tracker pipeline in the foreground, shared by ``omnidev mouse`` and
 ``omnidev laser``: the daemon's pipeline on any source into any sink until a file
-source ends or Ctrl-C / SIGTERM; every button is released on the way out."""
+source ends or Ctrl-C / SIGTERM; every button is released on the way out.
+
+The source policy is the daemon's (docs/daemon.md, "Sources and the frame queue"):
+a file is read as fast as the tracker takes it, every frame, with the file's own
+timestamps; a camera (or a file paced with ``rate=``) drops its oldest frame when
+the tracker is behind, and the exit summary counts the drops. A missing, truncated
+or corrupt file ends the run with one line naming the last good frame (exit 2)."""
 
 from __future__ import annotations
 
@@ -19,6 +25,14 @@ from omnidev.errors import OmnidevError
 
 def add_pointer_arguments(p: argparse.ArgumentParser) -> None:
     """The options every foreground pointer command has: sink, screen, filter, buttons."""
+    p.epilog = (
+        "Sources: a video file or image set is read as fast as the tracker takes it, every "
+        "frame, with the file's own timestamps for the filter and --dwell; a camera, or a "
+        "file paced with ?rate=N or ?rate=realtime, drops its oldest frame when the tracker "
+        "is behind. The summary at the end counts frames, drops and cursor positions. A "
+        "missing, truncated or corrupt file stops with an error naming its last good "
+        "frame (exit 2). See docs/daemon.md, 'Sources and the frame queue'."
+    )
     p.add_argument(
         "--sink",
         default="record",
@@ -67,17 +81,15 @@ def run_foreground(
     options = sink_options(args.sink_option)
     if args.sink == "record" and "path" not in options:
         options["path"] = "-"  # the default: the pointer's events on standard output
-    with open_source(args.source) as probe:  # a clear error now, not a retry loop
-        ends = probe.frame_count is not None  # a file that is not looped
-        # a file read as fast as it decodes: keep every frame (a camera: drop old ones)
-        queue = 1 if getattr(probe, "live", True) else 1024
+    with open_source(args.source):  # a missing camera: a clear error now, not a retry loop
+        pass
     doc = {
         "source": {"uri": args.source},
         "tracker": tracker,
         "filter": {"kind": args.filter},
         "sink": {"name": args.sink, "options": options},
         "screen": {"rect": args.screen},
-        "daemon": {"queue": queue},
+        "daemon": {"queue": 1},
         "buttons": {
             "input": args.buttons,
             "dwell": args.dwell,
@@ -86,7 +98,7 @@ def run_foreground(
         },
     }
     config = parse_config(doc, Path(f"omnidev {name}"))
-    pipeline = Pipeline(config, stop_at_end=ends)
+    pipeline = Pipeline(config, log_fatal=False)  # the error ends the command, once
     if check is not None:
         check(pipeline, config)
     stop = threading.Event()
@@ -96,24 +108,21 @@ def run_foreground(
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     pipeline.start()
+    failure: str | None = None
     try:
-        while not stop.wait(0.1):
+        while not stop.wait(0.05):
             if pipeline.fatal is None and pipeline.ended.is_set():
                 break  # the file ended
             if pipeline.fatal is not None or not pipeline.alive:
-                pipeline.stop()
-                raise OmnidevError(
-                    pipeline.fatal or "the pipeline stopped unexpectedly (see the log above)"
-                )
+                failure = pipeline.fatal or "the pipeline stopped unexpectedly (see the log above)"
+                break
     finally:
         pipeline.stop()
         for s, h in old.items():
             signal.signal(s, h)
     st = pipeline.status()
     clicks = f", {st['dwell_clicks']} dwell clicks" if args.dwell else ""
-    print(
-        f"{st['frames']} frames, {st['tracked']} cursor positions{clicks}, latency p50 "
-        f"{st['latency_p50_ms']} ms; buttons released",
-        file=sys.stderr,
-    )
+    print(f"{pipeline.summary()}{clicks}; buttons released", file=sys.stderr)
+    if failure is not None:
+        raise OmnidevError(failure)
     return 0

@@ -38,6 +38,7 @@ SUBCOMMANDS = (
     "mouse_cmd",
     "laser_cmd",
     "nonsvp_cmd",
+    "eval_cmd",
 )
 
 _NEGATIVE_VALUE = re.compile(r"^-\.?\d")

@@ -15,7 +15,11 @@ def register(sub: Any) -> None:
         "replay",
         help="replay a pointer recording (JSON lines of the record sink) into a sink",
         description="Send the moves and buttons of a recording to a sink, with the "
-        "original timing unless --fast. Every button is released at the end, on "
+        "original timing unless --fast: by default the spacing of the frames the "
+        "positions came from (a recording of a video file replays at the video's pace, "
+        "however fast it was tracked), or with --timing written the spacing of the "
+        "lines as they were written. Recordings of format 1 (no frame timestamps) "
+        "replay with their written spacing. Every button is released at the end, on "
         "Ctrl-C and on SIGTERM.",
     )
     p.add_argument("recording", type=Path, help="JSON lines written by the record sink")
@@ -30,6 +34,12 @@ def register(sub: Any) -> None:
     p.add_argument("--screen", default="1920x1080+0+0", help="target screen WxH+X+Y in the layout")
     p.add_argument("--layout", help="whole desktop WxH (default: the screen's extent)")
     p.add_argument("--fast", action="store_true", help="no pauses between events")
+    p.add_argument(
+        "--timing",
+        choices=("frames", "written"),
+        default="frames",
+        help="pace of the replay: the frames' timestamps (default) or the write times",
+    )
     p.set_defaults(func=run)
 
 
@@ -53,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         raise OmnidevError(str(exc)) from None
     sink = open_sink(args.sink, options, mapping)
     with release_on_signals(sink):
-        sent = replay(args.recording, sink, realtime=not args.fast)
+        sent = replay(args.recording, sink, realtime=not args.fast, timing=args.timing)
     if sent == 0:
         raise OmnidevError(f"{args.recording}: no move or button events to replay")
     print(f"replayed {sent} events into {args.sink}")

@@ -35,7 +35,8 @@ layout = "1920x1080"          # the whole desktop (default: the rect's extent)
 
 [daemon]
 socket = "/run/omnidev/control.sock"
-queue = 1                     # frames waiting for the tracker; older ones are dropped
+queue = 1                     # frames waiting for the tracker (1 .. 16); when it is full a
+                              # camera's oldest frame is dropped, a file waits
 retry_initial_s = 0.5         # camera retry backoff: first wait ...
 retry_max_s = 10.0            # ... doubling up to this
 """
@@ -53,12 +54,13 @@ from omnidev.screen import ScreenMapping, ScreenRect
 from omnidev.sources import resolve_uri
 
 DEFAULT_CONFIG = Path("/etc/omnidev/omnidev.toml")
+# Frames the queue may hold: a live source's frames beyond one or two only add
+# latency, a file's only memory (16 frames of 1920x1080 BGR are 100 MB).
+MAX_QUEUE = 16
 
 MAX_CUTOFF_HZ = 1000.0
 """Largest One Euro cutoff accepted (Hz): far above any camera's frame rate."""
 MAX_BETA = 1e6
-MAX_QUEUE = 1024
-"""Most frames [daemon] queue may hold (1 frame of 1280x720 is 2.8 MB)."""
 
 _SECTIONS: dict[str, set[str]] = {
     "source": {"uri"},
@@ -232,7 +234,11 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
 
     queue = get("daemon", "queue", int, 1)
     if not 1 <= queue <= MAX_QUEUE:
-        raise fail("daemon.queue", f"must be 1..{MAX_QUEUE} frames")
+        raise fail(
+            "daemon.queue",
+            f"must be 1 .. {MAX_QUEUE} frames, got {queue} (a camera's extra frames only add "
+            "latency; a file waits for the tracker whatever the queue)",
+        )
     retry_initial = positive("daemon", "retry_initial_s", 0.5, 3600.0)
     retry_max = positive("daemon", "retry_max_s", 10.0, 3600.0)
     if retry_max < retry_initial:

@@ -5,6 +5,11 @@ opens tracker and sink, tells systemd it is ready (Type=notify), pings the
 watchdog while the pipeline is healthy, answers the control socket, reloads
 on SIGHUP or ``omnidev ctl reload``, and on SIGTERM/SIGINT stops with every
 pointer button released.
+
+Exit status: 0 after SIGTERM/SIGINT or when a file source ended; 1 when the
+pipeline stopped by itself (systemd restarts it); 2 for a bad configuration;
+:data:`EXIT_SOURCE_FAILED` (65) when a file source is missing, truncated or
+corrupt (the unit's ``RestartPreventExitStatus`` keeps systemd from replaying it).
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ from omnidev.daemon.pipeline import Pipeline
 from omnidev.errors import ConfigError, OmnidevError
 
 log = logging.getLogger("omnidevd")
+
+EXIT_SOURCE_FAILED = 65  # sysexits' EX_DATAERR: the input data is bad; restarting cannot help
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -131,9 +138,12 @@ class Daemon:
             self.config.sink,
             self.socket,
         )
-        period = sdnotify.watchdog_interval_s() or 1.0
+        period = min(sdnotify.watchdog_interval_s() or 1.0, 1.0)
+        next_ping = 0.0
         try:
-            while not self.stopping.wait(min(period, 0.5)):
+            while not self.stopping.is_set():
+                # wakes at once when the run ends by itself (a file ended or failed)
+                self.pipeline.finished.wait(0.2)
                 now = time.monotonic()
                 for due, old in [r for r in self._retired if r[0] <= now]:
                     self._retired.remove((due, old))
@@ -144,10 +154,20 @@ class Daemon:
                         self.reload()
                     except OmnidevError as exc:
                         log.error("reload failed, keeping the running configuration: %s", exc)
-                if not self.pipeline.alive:
+                if self.pipeline.ended.is_set():
+                    log.info("the file source ended; exiting")
+                    return 0
+                if self.pipeline.finished.is_set() or not self.pipeline.alive:
                     why = self.pipeline.fatal or "pipeline thread died"
+                    if self.pipeline.source_failed:  # the error is logged above
+                        log.info("exiting with status %d, not restarted", EXIT_SOURCE_FAILED)
+                        return EXIT_SOURCE_FAILED
                     log.error("%s; exiting so systemd restarts the daemon", why)
                     return 1
+                now = time.monotonic()
+                if now < next_ping:
+                    continue
+                next_ping = now + period
                 if self.pipeline.healthy():
                     sdnotify.watchdog()
                 st = self.pipeline.status()
@@ -159,7 +179,7 @@ class Daemon:
                 old.close()
             if self.server is not None:
                 self.server.close()
-            log.info("stopped; all buttons released")
+            log.info("stopped: %s; all buttons released", self.pipeline.summary())
         return 0
 
 

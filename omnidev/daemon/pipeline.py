@@ -2,17 +2,34 @@
 
 Two threads:
 
-- *capture* opens the source and puts frames into a bounded queue; when the
-  queue is full the oldest frame is dropped (and counted), so a slow tracker
-  costs frames, never latency. When the source fails (camera unplugged) it
-  logs, tells the worker to release every button, and reopens the source with
-  exponential backoff until it comes back.
+- *capture* opens the source and puts frames into a bounded queue
+  (``[daemon] queue`` frames, at most :data:`~omnidev.daemon.config.MAX_QUEUE`).
+  What happens when the queue is full depends on the source
+  (:attr:`omnidev.sources.Source.live`):
+
+  - a *live* source (a camera, a file paced with ``rate=``): the oldest frame is
+    dropped and counted (``dropped_frames``), so a slow tracker costs frames,
+    never latency. When the camera fails (unplugged) the capture thread logs,
+    tells the worker to release every button, and reopens the source with
+    exponential backoff until it comes back.
+  - a *recorded* source (a video file, an image set): the reader waits for the
+    tracker, so no frame is ever dropped; pausing pauses the reading. When the
+    file ends, the run ends (``state`` "ended"); a missing, truncated or corrupt
+    file (:class:`~omnidev.errors.FileSourceError`) ends it with that error
+    (``state`` "failed") once the frames before it are processed; it is never
+    reopened as a camera would be.
 - *worker* takes frames, runs the tracker, filters the sample and hands it to
   the sink. Only this thread touches the sink; it closes the sink (releasing
   buttons) when it ends, whatever the reason.
 
-Latency of a frame = monotonic time when the sink call returned (the event is
-with the OS) minus the frame's capture timestamp.
+The filter and the dwell click run on the frames' own timestamps
+(:attr:`Frame.timestamp_ns <omnidev.frame.Frame>`: capture time of a live
+frame, presentation time of a file's frame), so a file behaves as the same video
+would live. Latency of a frame = monotonic time when the sink call returned (the
+event is with the OS) minus the monotonic time the source delivered the frame
+(:attr:`Frame.monotonic_ns <omnidev.frame.Frame>`): for a camera that is its
+capture time; for a file it is the moment the frame was decoded, so a file's
+latency is omnidev's own (queue, tracker, filter, sink), without a camera's.
 """
 
 from __future__ import annotations
@@ -29,7 +46,7 @@ import numpy as np
 
 from omnidev.buttons import ButtonInput, ButtonInputError, DwellClicker, open_buttons
 from omnidev.daemon.config import DaemonConfig
-from omnidev.errors import OmnidevError
+from omnidev.errors import FileSourceError, OmnidevError
 from omnidev.filters import OneEuroFilter
 from omnidev.frame import Frame, PointerSample
 from omnidev.sinks import PointerSink, open_sink
@@ -47,6 +64,7 @@ class _Stats:
     tracker_errors: int = 0
     sink_errors: int = 0
     camera_retries: int = 0
+    processed: int = 0  # frames the worker has taken from the queue
 
 
 class Pipeline:
@@ -56,16 +74,20 @@ class Pipeline:
         config: the validated configuration.
         on_sample: optional callback ``(sample, t_done_ns)`` after each sink
             call, from the worker thread (tests and benchmarks use it).
+        log_fatal: log the error that stops the pipeline (:attr:`fatal`); a
+            caller that reports it itself (the foreground commands) passes False.
     """
 
     def __init__(
-        self, config: DaemonConfig, on_sample: Any = None, *, stop_at_end: bool = False
+        self, config: DaemonConfig, on_sample: Any = None, *, log_fatal: bool = True
     ) -> None:
         self.config = config
         self.on_sample = on_sample
-        self.stop_at_end = stop_at_end  # a file run in the foreground: end, do not retry
-        self.ended = threading.Event()  # set when the source ended and stop_at_end
-        self._processed = 0  # frames the worker has taken and handled
+        self.log_fatal = log_fatal
+        self.ended = threading.Event()  # set when a recorded source ended and all is processed
+        self.finished = threading.Event()  # set when the run ended by itself (ended or fatal)
+        self.source_failed = False  # a file source failed: final, restarting cannot help
+        self.source_live: bool | None = None  # the open source's kind (None: none opened yet)
         self.state = "starting"
         self.started = time.monotonic()
         self._stats = _Stats()
@@ -184,6 +206,9 @@ class Pipeline:
             "frames": s.frames,
             "tracked": s.tracked,
             "dropped_frames": s.dropped_frames,
+            "source_kind": None
+            if self.source_live is None
+            else ("live" if self.source_live else "recorded"),
             "tracker_errors": s.tracker_errors,
             "sink_errors": s.sink_errors,
             "events": self.sink.events,
@@ -198,13 +223,37 @@ class Pipeline:
     def latencies_ns(self) -> list[int]:
         return list(self._latency_ns)
 
+    def summary(self) -> str:
+        """One line for the end of a run: frames, drops and why, positions, latency."""
+        st = self.status()
+        drops = f"{st['dropped_frames']} dropped"
+        if st["source_kind"] == "recorded":
+            drops += " (a file waits for the tracker)"
+        elif st["source_kind"] == "live":
+            drops += " (live source: the oldest frame when behind)"
+        return (
+            f"{st['frames']} frames, {drops}, {st['tracked']} cursor positions, "
+            f"latency p50 {st['latency_p50_ms']} ms"
+        )
+
     # -- threads ---------------------------------------------------------------
-    def _put(self, frame: Frame) -> None:
-        """Queue a frame; when the queue is full, drop the oldest to make room."""
+    def _put(self, frame: Frame, live: bool) -> bool:
+        """Queue a frame. Live: when the queue is full, drop the oldest to make room.
+        Recorded: wait for room. False when the wait ended by a stop or a source change."""
+        if not live:
+            while not (self._stop.is_set() or self._restart_source.is_set()):
+                if not self._worker.is_alive() and self._worker.ident is not None:
+                    return False
+                try:
+                    self._queue.put(frame, timeout=0.05)
+                    return True
+                except queue.Full:
+                    continue
+            return False
         while True:
             try:
                 self._queue.put_nowait(frame)
-                return
+                return True
             except queue.Full:
                 try:
                     self._queue.get_nowait()
@@ -219,44 +268,66 @@ class Pipeline:
             self._restart_source.clear()
             try:
                 source = open_source(uri)
+            except FileSourceError as exc:
+                self._fail_source(exc)
+                return
             except OmnidevError as exc:
                 self._wait_for_camera(exc, delay)
                 delay = min(delay * 2, self.config.retry_max_s)
                 continue
+            live = bool(getattr(source, "live", True))
             try:
                 with source:
-                    log.info("source %s open", uri)
+                    self.source_live = live
+                    log.info("source %s open (%s)", uri, "live" if live else "recorded")
                     self.state = "running"
                     delay = self.config.retry_initial_s
                     for frame in source:
+                        if not self._put(frame, live):
+                            break
                         self._stats.frames += 1
-                        self._put(frame)
                         if self._stop.is_set() or self._restart_source.is_set():
                             break
                     else:
-                        if self.stop_at_end:
-                            self._wait_processed()  # every captured frame is processed
-                            self.state = "ended"
-                            self.ended.set()
+                        self._wait_processed()  # every captured frame is processed
+                        if self._stop.is_set():
                             return
-                        raise OmnidevError(f"{uri}: the source ended")
-            except OmnidevError as exc:
+                        self.state = "ended"
+                        log.info("source %s ended after %d frames", uri, self._stats.frames)
+                        self.ended.set()
+                        self.finished.set()
+                        return
+            except Exception as exc:
+                final = isinstance(exc, FileSourceError) or not live
+                if final:
+                    # A file's data ends here: process what came before, then stop;
+                    # reopening would only replay the same frames.
+                    self._wait_processed()
+                    self._fail_source(exc)
+                    return
+                if not isinstance(exc, OmnidevError):  # OpenCV or driver errors: logged in full
+                    log.exception("source %s failed", uri)
                 self._drain()  # frames captured before the loss still count
                 self._lost.set()
                 self._wait_for_camera(exc, delay)
                 delay = min(delay * 2, self.config.retry_max_s)
-            except Exception as exc:  # OpenCV or driver errors: same treatment, logged in full
-                log.exception("source %s failed", uri)
-                self._lost.set()
-                self._wait_for_camera(exc, delay)
-                delay = min(delay * 2, self.config.retry_max_s)
 
-    def _wait_processed(self, timeout: float = 10.0) -> None:
+    def _fail_source(self, exc: BaseException) -> None:
+        """A recorded source failed: stop the pipeline with its error (buttons released)."""
+        msg = str(exc) if isinstance(exc, OmnidevError) else f"{self.config.source}: {exc!r}"
+        self.fatal = msg
+        self.source_failed = True
+        self.state = "failed"
+        if self.log_fatal:
+            log.error("%s; not retrying (a file is not a camera that may come back)", msg)
+        self._stop.set()
+        self.finished.set()
+
+    def _wait_processed(self) -> None:
         """Wait until the worker has processed (or the queue dropped) every captured frame."""
-        end = time.monotonic() + timeout
-        while time.monotonic() < end and not self._stop.is_set():
+        while not self._stop.is_set():
             s = self._stats
-            if self._processed + s.dropped_frames >= s.frames or not self._worker.is_alive():
+            if s.processed + s.dropped_frames >= s.frames or not self._worker.is_alive():
                 return
             time.sleep(0.002)
 
@@ -282,13 +353,16 @@ class Pipeline:
                     self._lost.clear()
                     self._on_lost()
                 self._poll_buttons()
+                if self._paused.is_set() and self.source_live is False:
+                    self._stop.wait(0.05)  # a file waits where it is while paused
+                    continue
                 try:
                     frame = self._queue.get(timeout=0.05)
                 except queue.Empty:
                     continue
                 if not self._paused.is_set():
                     self._process(frame)
-                self._processed += 1
+                self._stats.processed += 1
         finally:
             try:
                 self.sink.close()
@@ -363,8 +437,10 @@ class Pipeline:
                 f"{self.config.source}: frame {frame.index} is {w}x{h}, the stream was "
                 f"{self._size[0]}x{self._size[1]}; stopping with all buttons released"
             )
-            log.error("%s", self.fatal)
+            if self.log_fatal:
+                log.error("%s", self.fatal)
             self._stop.set()
+            self.finished.set()
             return
         try:
             sample = self.tracker.track(frame)
@@ -393,6 +469,7 @@ class Pipeline:
             sample.timestamp_ns,
             sample.confidence,
             sample.buttons | frozenset(self._held),
+            frame.index,
         )
         try:
             self.sink.emit(sample)
@@ -410,11 +487,11 @@ class Pipeline:
             rect = self.config.screen.screen
             t = sample.timestamp_ns / 1e9
             if self.dwell.update(t, sample.x * (rect.width - 1), sample.y * (rect.height - 1)):
-                self.sink.click(self.dwell.button)
+                self.sink.click(self.dwell.button, sample=sample)
                 self._dwell_clicks += 1
         done = time.monotonic_ns()
         self._stats.tracked += 1
-        self._latency_ns.append(done - frame.timestamp_ns)
+        self._latency_ns.append(done - frame.monotonic_ns)
         self._times_ns.append(done)
         if self.on_sample is not None:
             self.on_sample(sample, done)

@@ -1,7 +1,12 @@
 """Screen calibration from three captured patterns: image pixels -> screen pixels (ch. 5).
 
-Pipeline (sec. 5.2): TDM (eq. 5.1) -> border polygon (Figs. 5.5-5.7) -> dot centres
-(eqs. 5.2-5.3, DTM) -> the chosen image -> screen transform (see
+Pipeline (sec. 5.2): the screen's border polygon -> TDM (eq. 5.1) -> dot centres
+(eqs. 5.2-5.3, DTM) -> the chosen image -> screen transform. The border comes
+from the white-minus-black difference by default (``border="region"``: only the
+screen changes by a large positive amount, so it cannot land on the wall), or
+by the dissertation's scan windows on the TDM (``border="tdm"``, Figs. 5.5-5.7).
+Any dot layout (rows x columns, margins: :func:`omnidev.screencal.patterns.dot_grid`)
+is accepted and written into the calibration. Transforms (see
 :mod:`omnidev.screencal.transform`): ``radial`` (default: the most accurate on the
 rendered fixtures), ``bilinear``, ``idw`` (the dissertation's, eqs. 5.4-5.5),
 ``homography``, ``tsai``. Image pixels (u right, v down) and screen pixels (x
@@ -20,6 +25,7 @@ import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -32,63 +38,89 @@ from omnidev.calibfile import (
     write_storage,
 )
 from omnidev.errors import CalibrationError
+from omnidev.screencal.coded import CodedLayout
 from omnidev.screencal.dots import DotDetection, find_dots
 from omnidev.screencal.features import (
     MIN_CONTRAST,
     BorderPolygon,
+    border_from_region,
+    edge_points,
     find_border,
+    screen_region,
     threshold_map,
     to_gray,
 )
 from omnidev.screencal.grid import LandmarkGrid, landmark_grid
-from omnidev.screencal.patterns import dot_grid
+from omnidev.screencal.patterns import DotGrid, dot_grid
 from omnidev.screencal.transform import CellMap, HomographyMap, ImageToScreen, RadialMap, invert
 from omnidev.screencal.tsai import TsaiMap
 
 FloatArray = NDArray[np.float64]
 KIND = "screen-calibration"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: dot layout (rows, cols, margins, radius); version 1 still read
+BORDERS = ("region", "tdm")
 METHODS = ("radial", "bilinear", "idw", "homography", "tsai")
 DEFAULT_METHOD = "radial"
 EDGE_TOLERANCE_PX = 1.0  # screen px beyond the screen's edge still mapped (not NaN)
 
 
-def min_dots(n: int) -> int:
-    """Fewest dots of an n x n grid that still calibrate: half of them, at least 12."""
-    return max(12, math.ceil(n * n / 2))
+def min_dots(n: int, cols: int | None = None) -> int:
+    """Fewest dots of an n x n (or n x cols) grid that still calibrate: half, at least 12
+    (all of them if there are fewer than 12)."""
+    count = n * (n if cols is None else cols)
+    return min(count, max(12, math.ceil(count / 2)))
 
 
 @dataclass(frozen=True)
 class ScreenFeatures:
-    """Everything measured in the three images: TDM, border polygon, dots."""
+    """Everything measured in the three images: TDM, border polygon, dots, and the layout."""
 
     image_size: tuple[int, int]
     screen_size: tuple[int, int]
-    n: int
+    n: int  # rows (kept for square grids; see layout)
     tdm: NDArray[np.uint8]
     border: BorderPolygon
     dots: DotDetection
-    screen_dots: FloatArray  # (n*n, 2) screen px of the pattern's dots
+    screen_dots: FloatArray  # (rows*cols, 2) screen px of the pattern's dots
     lattice: FloatArray  # x0, y0, sx, sy of the dot lattice on the screen
+    layout: DotGrid | None = None
+    edges: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None  # top, right, ..
+
+    def edge_constraints(self) -> list[tuple[FloatArray, int, float]]:
+        """The screen-edge points as (points, screen axis, value) for RadialMap.fit."""
+        if self.edges is None:
+            return []
+        sw, sh = self.screen_size
+        top, right, bottom, left = self.edges
+        return [(top, 1, -0.5), (right, 0, sw - 0.5), (bottom, 1, sh - 0.5), (left, 0, -0.5)]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols) of the dot grid."""
+        return self.dots.shape
 
 
-def _check_scene(w: NDArray[np.uint8], b: NDArray[np.uint8], d: NDArray[np.uint8]) -> None:
+def _check_scene(
+    w: NDArray[np.uint8], b: NDArray[np.uint8], d: NDArray[np.uint8], screen: NDArray[np.bool_]
+) -> None:
+    """Swapped or mismatched images, judged on the screen region (auto-exposure may
+    brighten the room in the black image; only the screen must be darker there)."""
     wi, bi, di = (x.astype(np.int16) for x in (w, b, d))
-    brighter = int(np.count_nonzero(wi - bi > MIN_CONTRAST))
-    darker = int(np.count_nonzero(bi - wi > MIN_CONTRAST))
-    if darker > brighter:
+    diff = wi - bi
+    on = screen
+    if np.count_nonzero(on) and float(np.median(diff[on])) < 0:
         raise CalibrationError(
-            "the black image is brighter than the white image: are --white and --black swapped?"
+            "the black image is brighter than the white image on the screen: "
+            "are --white and --black swapped?"
         )
-    off = (wi - bi) <= MIN_CONTRAST // 2
+    off = ~cv2.dilate(screen.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
     if np.count_nonzero(off) > 0.02 * off.size:
         mismatch = float(np.median(np.abs(di - bi)[off]))
-        if mismatch > MIN_CONTRAST:
+        if mismatch > 2 * MIN_CONTRAST:
             raise CalibrationError(
-                "the dot image does not match the white/black images outside the screen "
+                "the dot image does not match the black image outside the screen "
                 f"(median difference {mismatch:.0f} grey levels): different scene or camera moved?"
             )
-    on = ~off
     if np.count_nonzero(on) and np.count_nonzero(
         di[on] > (wi[on] + bi[on]) // 2
     ) > 0.5 * np.count_nonzero(on):
@@ -96,6 +128,41 @@ def _check_scene(w: NDArray[np.uint8], b: NDArray[np.uint8], d: NDArray[np.uint8
             "the dot image is mostly bright inside the screen: is it the white image, "
             "not the dot matrix?"
         )
+
+
+def _region_tdm(
+    w: NDArray[np.uint8], b: NDArray[np.uint8], mask: NDArray[np.bool_]
+) -> NDArray[np.uint8]:
+    """The TDM (eq. 5.1) on the screen region: b + (w - b) / 2 inside, 255 outside."""
+    wi, bi = w.astype(np.int16), b.astype(np.int16)
+    t = np.full(w.shape, 255, np.uint8)
+    t[mask] = np.clip(bi[mask] + np.maximum(wi[mask] - bi[mask], 0) // 2, 0, 255).astype(np.uint8)
+    return t
+
+
+def _grid_summary(uv: FloatArray, border: BorderPolygon, screen_size: tuple[int, int]) -> str:
+    """'in about 7 rows x 7 columns': dot-like blobs counted along the screen's axes."""
+    sw, sh = screen_size
+    if len(uv) < 2:
+        return ""
+    corners_img = border.vertices[[0, 2, 4, 6]].astype(np.float32)
+    corners_scr = np.array(
+        [[-0.5, -0.5], [sw - 0.5, -0.5], [sw - 0.5, sh - 0.5], [-0.5, sh - 0.5]], np.float32
+    )
+    hmat = cv2.getPerspectiveTransform(corners_img, corners_scr)
+    xy = np.asarray(
+        cv2.perspectiveTransform(uv.reshape(-1, 1, 2).astype(np.float64), hmat), np.float64
+    ).reshape(-1, 2)
+
+    def clusters(v: FloatArray) -> int:
+        v = np.sort(v)
+        gaps = np.diff(v)
+        if len(gaps) == 0:
+            return 1
+        big = gaps > max(0.4 * float(np.max(gaps)), 1e-9)
+        return int(np.count_nonzero(big)) + 1
+
+    return f" in about {clusters(xy[:, 1])} rows x {clusters(xy[:, 0])} columns"
 
 
 def detect_screen(
@@ -106,32 +173,146 @@ def detect_screen(
     n: int = 9,
     screen_size: tuple[int, int] = (1920, 1080),
     subpixel: bool = True,
+    layout: DotGrid | None = None,
+    border: str = "region",
+    index: str = "model",
+    use_edges: bool = True,
 ) -> ScreenFeatures:
-    """Measure the TDM, the border polygon and the dot centres in the three images."""
+    """Measure the border polygon, the TDM and the dot centres in the three images.
+
+    Images are H x W grey or BGR uint8 (one grey conversion, :func:`to_gray`, for
+    every caller). ``layout`` is the displayed dot layout (default: ``n`` x ``n``
+    dots of :func:`~omnidev.screencal.patterns.dot_grid` on ``screen_size``);
+    ``border``: ``region`` (white minus black, default) or ``tdm`` (the
+    dissertation's scan windows); ``index``: ``model`` (default) or ``walk`` (the
+    dissertation's CMP walk), see :func:`omnidev.screencal.dots.find_dots`;
+    ``use_edges``: also measure sub-pixel points on the screen's edges
+    (:func:`~omnidev.screencal.features.edge_points`), which the ``radial`` method
+    fits beside the dots.
+    Raises CalibrationError saying what was found.
+    """
+    if border not in BORDERS:
+        raise CalibrationError(
+            f"unknown border method {border!r}; choose from {', '.join(BORDERS)}"
+        )
     w, b, d = to_gray(white), to_gray(black), to_gray(dots)
     if not (w.shape == b.shape == d.shape):
         raise CalibrationError(
             f"image sizes differ: white {w.shape[::-1]}, black {b.shape[::-1]}, "
             f"dots {d.shape[::-1]}"
         )
-    _check_scene(w, b, d)
-    tdm = threshold_map(w, b)
-    border = find_border(tdm)
-    grid = dot_grid(screen_size[0], screen_size[1], n)
-    det = find_dots(d, w, b, tdm, border, n, grid.centers, screen_size, subpixel=subpixel)
-    need = min_dots(n)
+    grid = dot_grid(screen_size[0], screen_size[1], n) if layout is None else layout
+    screen_size = grid.screen_px
+    rows, cols = grid.shape
+    poly, tdm = _border_tdm(w, b, d, border)
+    det = find_dots(
+        d, w, b, tdm, poly, (rows, cols), grid.centers, screen_size, subpixel=subpixel, index=index
+    )
+    need = min_dots(rows, cols)
+    expected = rows * cols
+    blobs = det.blob_uv if det.blob_uv is not None else det.centers[det.found]
     if det.count < need:
         raise CalibrationError(
-            f"only {det.count} of {n * n} calibration dots found (need {need}): dots occluded, "
-            "or the dot image does not show the dot matrix"
+            f"found {det.count} of the {rows} x {cols} = {expected} dots (need {need}; "
+            f"{det.blobs} dot-like blobs inside the screen"
+            f"{_grid_summary(blobs, poly, screen_size)}): dots occluded, or the dot image "
+            "does not show this layout (check --layout / --n)"
         )
     sx, sy = grid.spacing_px
     lattice = np.array([grid.centers[0, 0], grid.centers[0, 1], sx, sy])
     image_size = (w.shape[1], w.shape[0])
+    if det.blobs > 1.3 * expected:
+        raise CalibrationError(
+            f"found {det.blobs} dot-like blobs inside the screen"
+            f"{_grid_summary(blobs, poly, screen_size)}, expected {rows} x {cols} = "
+            f"{expected}: is the layout right (check --layout / --n)?"
+        )
+    found = det.found
+    model = RadialMap.fit(
+        det.centers[found],
+        grid.centers[found],
+        image_size,
+        lattice,
+        (rows, cols),
+        found,
+        correct=False,
+    )
+    res = np.hypot(*(model(det.centers[found]) - grid.centers[found]).T)
+    spacing = float(min(sx, sy))
+    if float(np.median(res)) > 0.1 * spacing:
+        raise CalibrationError(
+            f"the {det.count} dots matched do not fit a {rows} x {cols} layout (median "
+            f"residual {float(np.median(res)) / spacing:.2f} dot spacings; {det.blobs} dot-like "
+            f"blobs inside the screen{_grid_summary(blobs, poly, screen_size)}): check "
+            "--layout / --n"
+        )
     if subpixel:
         det = _unbias(det, grid.centers, grid.radius_px, image_size, lattice)
-    _check_alignment(det, border, grid.centers, image_size, screen_size, lattice)
-    return ScreenFeatures(image_size, screen_size, n, tdm, border, det, grid.centers, lattice)
+    _check_alignment(det, poly, grid.centers, image_size, screen_size, lattice)
+    edges = edge_points(w, b, poly) if use_edges else None
+    return ScreenFeatures(
+        image_size, screen_size, rows, tdm, poly, det, grid.centers, lattice, grid, edges
+    )
+
+
+def detect_screen_coded(
+    white: NDArray[np.uint8],
+    black: NDArray[np.uint8],
+    coded: NDArray[np.uint8],
+    layout: CodedLayout,
+    *,
+    border: str = "region",
+    use_edges: bool = True,
+) -> ScreenFeatures:
+    """Like :func:`detect_screen` with the ChArUco board of ``layout``
+    (:mod:`omnidev.screencal.coded`) in place of the dot matrix: every corner found
+    is identified, so there is no grid to index."""
+    from omnidev.screencal.coded import find_charuco
+
+    if border not in BORDERS:
+        raise CalibrationError(
+            f"unknown border method {border!r}; choose from {', '.join(BORDERS)}"
+        )
+    w, b, c = to_gray(white), to_gray(black), to_gray(coded)
+    if not (w.shape == b.shape == c.shape):
+        raise CalibrationError(
+            f"image sizes differ: white {w.shape[::-1]}, black {b.shape[::-1]}, "
+            f"coded {c.shape[::-1]}"
+        )
+    poly, tdm = _border_tdm(w, b, None, border)
+    det = find_charuco(c, layout)
+    grid = layout.lattice
+    sx, sy = grid.spacing_px
+    lattice = np.array([grid.centers[0, 0], grid.centers[0, 1], sx, sy])
+    image_size = (w.shape[1], w.shape[0])
+    _check_alignment(det, poly, grid.centers, image_size, grid.screen_px, lattice)
+    edges = edge_points(w, b, poly) if use_edges else None
+    return ScreenFeatures(
+        image_size, grid.screen_px, grid.rows, tdm, poly, det, grid.centers, lattice, grid, edges
+    )
+
+
+def _border_tdm(
+    w: NDArray[np.uint8], b: NDArray[np.uint8], d: NDArray[np.uint8] | None, border: str
+) -> tuple[BorderPolygon, NDArray[np.uint8]]:
+    """The border polygon and the TDM by ``border`` (checking the scene on the way)."""
+    if border == "region":
+        region = screen_region(w, b)
+        if d is not None:
+            _check_scene(w, b, d, region.mask)
+        poly = border_from_region(region)
+        tdm = _region_tdm(w, b, poly.mask((w.shape[1], w.shape[0])) & region.mask)
+    else:
+        wi, bi = w.astype(np.int16), b.astype(np.int16)
+        if np.count_nonzero(bi - wi > MIN_CONTRAST) > np.count_nonzero(wi - bi > MIN_CONTRAST):
+            raise CalibrationError(
+                "the black image is brighter than the white image: are --white and --black swapped?"
+            )
+        tdm = threshold_map(w, b)
+        if d is not None:
+            _check_scene(w, b, d, tdm < 255)
+        poly = find_border(tdm)
+    return poly, tdm
 
 
 def _check_alignment(
@@ -146,16 +327,25 @@ def _check_alignment(
     fitted to the dots maps the border's mid-side vertices P1, P3, P5, P7 to the
     screen's edges, within a tenth of the dot spacing."""
     found = det.found
-    model = RadialMap.fit(det.centers[found], screen_dots[found], image_size, lattice, det.n, found)
+    model = RadialMap.fit(
+        det.centers[found], screen_dots[found], image_size, lattice, det.shape, found
+    )
     xy = model(border.vertices[[1, 3, 5, 7]])
     sw, sh = screen_size
     off = np.abs([xy[0, 1] + 0.5, xy[1, 0] - (sw - 0.5), xy[2, 1] - (sh - 0.5), xy[3, 0] + 0.5])
     worst = float(np.max(off))
-    if not worst <= 0.1 * float(min(lattice[2], lattice[3])):
+    spacing = float(min(lattice[2], lattice[3]))
+    if not worst <= 0.25 * spacing:
         side = ("top", "right", "bottom", "left")[int(np.argmax(off))]
+        hint = (
+            "the dot grid is indexed off by a whole row or column (is the layout right?)"
+            if worst > 0.6 * spacing
+            else "different scenes, or the camera moved between the captures?"
+        )
         raise CalibrationError(
-            f"the dots do not line up with the screen border of the white/black images "
-            f"({side} edge off by {worst:.0f} screen px): different scenes, or the camera moved?"
+            f"the dots do not line up with the screen border of the white/black images: "
+            f"{side} edge off by {worst:.1f} screen px ({worst / spacing:.2f} dot spacings); "
+            + hint
         )
 
 
@@ -180,18 +370,18 @@ def _unbias(
     """
     found = det.found.copy()
     uv, xy = det.centers[found], screen_dots[found]
-    model = RadialMap.fit(uv, xy, image_size, lattice, det.n, found, correct=False)
+    model = RadialMap.fit(uv, xy, image_size, lattice, det.shape, found, correct=False)
     # dots cut by an occluder: their centroids stray from the model fitted to all
     res = np.hypot(*(model(uv) - xy).T)
     bad = res > max(6.0 * float(np.median(res)), 0.01 * float(min(lattice[2], lattice[3])))
-    if bad.any() and (~bad).sum() >= min_dots(det.n):
+    if bad.any() and (~bad).sum() >= min_dots(det.rows, det.cols):
         idx = np.flatnonzero(found)[bad]
         found[idx] = False
         centers = det.centers.copy()
         centers[idx] = np.nan
         det = replace(det, centers=centers, found=found)
         uv, xy = det.centers[found], screen_dots[found]
-        model = RadialMap.fit(uv, xy, image_size, lattice, det.n, found, correct=False)
+        model = RadialMap.fit(uv, xy, image_size, lattice, det.shape, found, correct=False)
     a = np.arange(samples) * 2 * np.pi / samples
     ring = xy[:, None, :] + radius * np.stack([np.cos(a), np.sin(a)], axis=1)[None]
     start = np.repeat(uv, samples, axis=0)
@@ -215,17 +405,19 @@ class ScreenCalibration:
     """A fitted image -> screen calibration.
 
     image_size and screen_size are (W, H) in pixels; ``method`` names the transform;
-    ``dots_used`` is how many of the n x n dots were found and used.
+    ``dots_used`` is how many of the rows x cols dots were found and used; ``layout``
+    the displayed dot layout (rows, cols, margins, radius), written into the file.
     """
 
     image_size: tuple[int, int]
     screen_size: tuple[int, int]
     method: str
     dots_used: int
-    n: int
+    n: int  # rows of the dot grid
     border: BorderPolygon
     transform: ImageToScreen
-    dots_image: FloatArray = field(repr=False)  # (n*n, 2) image px, NaN if not found
+    dots_image: FloatArray = field(repr=False)  # (rows*cols, 2) image px, NaN if not found
+    layout: DotGrid | None = None
 
     def image_to_screen(self, uv: NDArray[np.float64]) -> NDArray[np.float64]:
         """(N, 2) image px -> (N, 2) screen px; NaN outside the calibrated screen (more
@@ -249,15 +441,22 @@ class ScreenCalibration:
         return self.border.mask(self.image_size)
 
     def save(self, path: Path, *, force: bool = True) -> None:
-        """Write as cv2.FileStorage (.yml / .yml.gz), atomically."""
+        """Write as cv2.FileStorage (.yml / .yml.gz), atomically, with the dot layout."""
         found: NDArray[np.bool_] = np.asarray(np.isfinite(self.dots_image).all(axis=1))
+        lay = self.layout or dot_grid(self.screen_size[0], self.screen_size[1], self.n)
         nodes: dict[str, object] = {
             "method": self.method,
             "image_width": self.image_size[0],
             "image_height": self.image_size[1],
             "screen_width": self.screen_size[0],
             "screen_height": self.screen_size[1],
-            "n": self.n,
+            "n": lay.rows,
+            "rows": lay.rows,
+            "cols": lay.cols,
+            "margin_x": float(lay.margin_px[0]),
+            "margin_y": float(lay.margin_px[1]),
+            "radius_px": float(lay.radius_px),
+            "polarity": lay.polarity,
             "dots_used": self.dots_used,
             "border": self.border.vertices,
             "dots_image": np.where(found[:, None], self.dots_image, -1.0),
@@ -272,10 +471,18 @@ def fit_calibration(features: ScreenFeatures, method: str = DEFAULT_METHOD) -> S
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
     det = features.dots
-    n = features.n
+    rows, cols = det.shape
     found = det.found
     uv, xy = det.centers[found], features.screen_dots[found]
-    radial = RadialMap.fit(uv, xy, features.image_size, features.lattice, n, found)
+    radial = RadialMap.fit(
+        uv,
+        xy,
+        features.image_size,
+        features.lattice,
+        (rows, cols),
+        found,
+        edges=features.edge_constraints(),
+    )
     transform: ImageToScreen
     if method == "radial":
         transform = radial
@@ -292,8 +499,8 @@ def fit_calibration(features: ScreenFeatures, method: str = DEFAULT_METHOD) -> S
                 radial, features.screen_dots[miss], guess(features.screen_dots[miss])
             )
         grid = landmark_grid(
-            dots_img.reshape(n, n, 2),
-            features.screen_dots.reshape(n, n, 2),
+            dots_img.reshape(rows, cols, 2),
+            features.screen_dots.reshape(rows, cols, 2),
             features.border,
             features.screen_size,
         )
@@ -303,10 +510,11 @@ def fit_calibration(features: ScreenFeatures, method: str = DEFAULT_METHOD) -> S
         features.screen_size,
         method,
         det.count,
-        n,
+        rows,
         features.border,
         transform,
         det.centers.copy(),
+        features.layout,
     )
 
 
@@ -318,13 +526,18 @@ def calibrate_screen(
     n: int = 9,
     screen_size: tuple[int, int] = (1920, 1080),
     method: str = DEFAULT_METHOD,
+    layout: DotGrid | None = None,
+    border: str = "region",
 ) -> ScreenCalibration:
-    """Calibrate image -> screen from the captured white, black and n x n dot images
-    (H x W grey or BGR uint8, one fixed camera). Raises CalibrationError saying what
-    was not found (screen, dots) or which images look swapped or mismatched."""
+    """Calibrate image -> screen from the captured white, black and dot-matrix images
+    (H x W grey or BGR uint8, one fixed camera; the dots ``n`` x ``n`` on
+    ``screen_size`` or any ``layout``). Raises CalibrationError saying what was found
+    (screen, dots, rows and columns) or which images look swapped or mismatched."""
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
-    features = detect_screen(white, black, dots, n=n, screen_size=screen_size)
+    features = detect_screen(
+        white, black, dots, n=n, screen_size=screen_size, layout=layout, border=border
+    )
     return fit_calibration(features, method)
 
 
@@ -333,32 +546,59 @@ def _int(fs: object, path: Path, key: str) -> int:
 
 
 def load_screen_calibration(path: Path) -> ScreenCalibration:
-    """Read a calibration written by :meth:`ScreenCalibration.save`; errors name the
-    file and the key."""
+    """Read a calibration written by :meth:`ScreenCalibration.save` (format 2, or 1 with
+    square default layouts); errors name the file and the key."""
     path = Path(path)
     with open_storage(path) as fs:
-        check_header(fs, path, KIND, FORMAT_VERSION)
+        version = (
+            int(read_real(fs, path, "format_version"))
+            if not fs.getNode("format_version").empty()
+            else FORMAT_VERSION
+        )
+        check_header(fs, path, KIND, 1 if version == 1 else FORMAT_VERSION)
         method = read_string(fs, path, "method")
         if method not in METHODS:
             raise CalibrationError(f"{path}: key 'method': unknown method {method!r}")
         image_size = (_int(fs, path, "image_width"), _int(fs, path, "image_height"))
         screen_size = (_int(fs, path, "screen_width"), _int(fs, path, "screen_height"))
-        n = _int(fs, path, "n")
+        if version == 1:
+            rows = cols = _int(fs, path, "n")
+            try:
+                lay = dot_grid(screen_size[0], screen_size[1], rows)
+            except ValueError as exc:
+                raise CalibrationError(f"{path}: key 'n': {exc}") from None
+        else:
+            rows, cols = _int(fs, path, "rows"), _int(fs, path, "cols")
+            margin = (read_real(fs, path, "margin_x"), read_real(fs, path, "margin_y"))
+            try:
+                lay = dot_grid(
+                    screen_size[0],
+                    screen_size[1],
+                    rows=rows,
+                    cols=cols,
+                    margin_px=margin,
+                    radius_px=read_real(fs, path, "radius_px"),
+                )
+            except ValueError as exc:
+                raise CalibrationError(f"{path}: dot layout keys: {exc}") from None
         used = _int(fs, path, "dots_used")
         border = read_mat(fs, path, "border").astype(np.float64)
         if border.shape != (8, 2):
             raise CalibrationError(f"{path}: key 'border' must be 8 x 2, got {border.shape}")
         dots = read_mat(fs, path, "dots_image").astype(np.float64).reshape(-1, 2)
         found = np.asarray(read_mat(fs, path, "dots_found"), np.float64).ravel() > 0.5
-        if len(dots) != n * n or len(found) != n * n:
+        count = rows * cols
+        if len(dots) != count or len(found) != count:
             raise CalibrationError(
-                f"{path}: keys 'dots_image'/'dots_found' must have n*n = {n * n} rows"
+                f"{path}: keys 'dots_image'/'dots_found' must have rows*cols = {count} rows"
             )
         dots[~found] = np.nan
         transform: ImageToScreen
         if method == "radial":
             keys = ("radial_params", "radial_scale", "residual", "lattice")
-            transform = RadialMap.from_params({k: read_mat(fs, path, k) for k in keys})
+            params = {k: read_mat(fs, path, k) for k in keys}
+            params["residual_shape"] = np.array([rows, cols], np.float64)
+            transform = RadialMap.from_params(params)
         elif method == "homography":
             transform = HomographyMap(read_mat(fs, path, "H").astype(np.float64))
         elif method == "tsai":
@@ -366,13 +606,13 @@ def load_screen_calibration(path: Path) -> ScreenCalibration:
         else:
             gi = read_mat(fs, path, "grid_image").astype(np.float64)
             gs = read_mat(fs, path, "grid_screen").astype(np.float64)
-            m = n + 2
-            if gi.shape != (m * m, 2) or gs.shape != (m * m, 2):
-                raise CalibrationError(
-                    f"{path}: keys 'grid_image'/'grid_screen' must be {m * m} x 2"
-                )
-            grid = LandmarkGrid(gi.reshape(m, m, 2), gs.reshape(m, m, 2))
+            m = (rows + 2) * (cols + 2)
+            if gi.shape != (m, 2) or gs.shape != (m, 2):
+                raise CalibrationError(f"{path}: keys 'grid_image'/'grid_screen' must be {m} x 2")
+            grid = LandmarkGrid(
+                gi.reshape(rows + 2, cols + 2, 2), gs.reshape(rows + 2, cols + 2, 2)
+            )
             transform = CellMap(grid, image_size, kind=method)
     return ScreenCalibration(
-        image_size, screen_size, method, used, n, BorderPolygon(border), transform, dots
+        image_size, screen_size, method, used, rows, BorderPolygon(border), transform, dots, lay
     )

@@ -36,18 +36,36 @@ _DIRS = [(math.cos(a), math.sin(a)) for a in np.arange(8) * math.pi / 4]
 class DotDetection:
     """Dot centres found in a dot-matrix image.
 
-    centers: (n*n, 2) image px, row-major like the pattern's DotGrid; NaN where a
-    dot was not found. found: (n*n,) bool. radius: (n*n,) DTM radius in image px
-    (NaN if not found). pitch: (W_g, H_g) of eq. 5.3 in image px. cross: (5, 2) the
-    five-dot cross C0..C4 (C1 left, C2 right, C3 up, C4 down).
+    centers: (rows*cols, 2) image px, row-major like the pattern's DotGrid; NaN
+    where a dot was not found. found: (rows*cols,) bool. radius: (rows*cols,) DTM
+    radius in image px (NaN if not found). pitch: (W_g, H_g) of eq. 5.3 in image
+    px. cross: (5, 2) the five-dot cross C0..C4 (C1 left, C2 right, C3 up, C4
+    down). blobs: dot-like blobs inside the screen border (found or not).
     """
 
-    n: int
+    rows: int
     centers: FloatArray
     found: NDArray[np.bool_]
     radius: FloatArray
     pitch: tuple[float, float]
     cross: FloatArray
+    cols: int = 0
+    blobs: int = 0
+    blob_uv: FloatArray | None = None  # (blobs, 2) image px of the dot-like blobs
+
+    def __post_init__(self) -> None:
+        if self.cols == 0:
+            object.__setattr__(self, "cols", self.rows)
+
+    @property
+    def n(self) -> int:
+        """Dots per row of a square grid (rows)."""
+        return self.rows
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols)."""
+        return self.rows, self.cols
 
     @property
     def count(self) -> int:
@@ -162,8 +180,8 @@ def _centroid(
 def _affine_guess(centers: FloatArray, i: int, j: int, rough: FloatArray) -> FloatArray:
     """Where dot (i, j) should be from an affine fit (grid index -> image px) to the six
     found dots nearest to it in the grid; ``rough`` if fewer than three are found."""
-    n = centers.shape[0]
-    gi, gj = np.mgrid[0:n, 0:n]
+    rows, cols = centers.shape[:2]
+    gi, gj = np.mgrid[0:rows, 0:cols]
     ok = np.isfinite(centers[..., 0])
     if ok.sum() < 3:
         return rough
@@ -176,21 +194,185 @@ def _affine_guess(centers: FloatArray, i: int, j: int, rough: FloatArray) -> Flo
     return np.asarray(np.array([j, i, 1.0]) @ coef, np.float64)
 
 
+def _refine(
+    maps: list[NDArray[np.float32]],
+    norm: NDArray[np.float32],
+    blobs: _Blobs,
+    k: int,
+    pitch: tuple[float, float],
+    subpixel: bool,
+) -> tuple[tuple[float, float], float]:
+    """(b.3) DTM position and radius of blob k, then (``subpixel``) the centroid of the
+    normalised brightness in a disc around it, iterated to a fixed point."""
+    wg, hg = pitch
+    pts = blobs.centroid
+    r_cc = math.sqrt(blobs.area[k] / math.pi)
+    radii = np.arange(max(1.5, 0.7 * r_cc), 1.3 * r_cc + 1.0, 0.5)
+    half = (max(2, int(wg / 4)), max(2, int(hg / 4)))
+    start = (round(float(pts[k, 0])), round(float(pts[k, 1])))
+    half = (min(half[0], int(r_cc) + 2), min(half[1], int(r_cc) + 2))
+    x, y, r, _ = _dtm(maps, start, half, radii)
+    pos: tuple[float, float] = (float(x), float(y))
+    if subpixel:
+        for _ in range(10):
+            c = _centroid(norm, pos[0], pos[1], 1.25 * r + 2.0)
+            if c is None:
+                break
+            moved = math.hypot(c[0] - pos[0], c[1] - pos[1])
+            pos = c
+            if moved < 1e-3:
+                break
+    return pos, r
+
+
+def _normalised(
+    gray: NDArray[np.uint8], white: NDArray[np.uint8], black: NDArray[np.uint8]
+) -> NDArray[np.float32]:
+    w_img = to_gray(white).astype(np.float32)
+    b_img = to_gray(black).astype(np.float32)
+    diff = w_img - b_img
+    norm = np.where(diff > MIN_CONTRAST, (gray - b_img) / np.maximum(diff, 1), 0)
+    return np.clip(norm, 0, 1).astype(np.float32)
+
+
+def _assign_by_model(
+    pts: FloatArray,
+    border: BorderPolygon,
+    screen_dots: FloatArray,
+    rows: int,
+    cols: int,
+    screen_size: tuple[int, int],
+    image_size: tuple[int, int],
+) -> tuple[NDArray[np.int64], FloatArray]:
+    """Blob index for each dot (-1: none) and the predicted image positions (rows*cols, 2).
+
+    Round 0 predicts through the homography of the border's corners; rounds 1-3
+    through a radial model (:class:`omnidev.screencal.transform.RadialMap`, inverted)
+    fitted to the dots matched in the previous round. A dot takes the nearest blob
+    within a third of the predicted distance to its nearest neighbouring dot, if that
+    blob has no nearer dot.
+    """
+    from omnidev.screencal.transform import RadialMap, invert
+
+    sw, sh = screen_size
+    corners_img = border.vertices[[0, 2, 4, 6]].astype(np.float32)
+    corners_scr = np.array(
+        [[-0.5, -0.5], [sw - 0.5, -0.5], [sw - 0.5, sh - 0.5], [-0.5, sh - 0.5]], np.float32
+    )
+    h = cv2.getPerspectiveTransform(corners_scr, corners_img)
+    pred = cv2.perspectiveTransform(screen_dots.reshape(-1, 1, 2).astype(np.float64), h)
+    pred = np.asarray(pred, np.float64).reshape(-1, 2)
+    assign = np.full(len(screen_dots), -1, np.int64)
+    sx = (screen_dots[1, 0] - screen_dots[0, 0]) if cols > 1 else 1.0
+    sy = (screen_dots[cols, 1] - screen_dots[0, 1]) if rows > 1 else 1.0
+    lattice = np.array([screen_dots[0, 0], screen_dots[0, 1], sx, sy])
+    for rnd in range(4):
+        g = pred.reshape(rows, cols, 2)
+        dx = np.full((rows, cols), np.inf)
+        dy = np.full((rows, cols), np.inf)
+        if cols > 1:
+            step = np.hypot(*(g[:, 1:] - g[:, :-1]).transpose(2, 0, 1))
+            dx[:, :-1] = np.minimum(dx[:, :-1], step)
+            dx[:, 1:] = np.minimum(dx[:, 1:], step)
+        if rows > 1:
+            step = np.hypot(*(g[1:] - g[:-1]).transpose(2, 0, 1))
+            dy[:-1] = np.minimum(dy[:-1], step)
+            dy[1:] = np.minimum(dy[1:], step)
+        gate = np.minimum(dx, dy).ravel() / 3.0
+        d = np.hypot(pts[None, :, 0] - pred[:, None, 0], pts[None, :, 1] - pred[:, None, 1])
+        best = np.argmin(d, axis=1)
+        ok = d[np.arange(len(pred)), best] < gate
+        mutual = np.argmin(d, axis=0)[best] == np.arange(len(pred))
+        assign = np.where(ok & mutual, best, -1)
+        found = assign >= 0
+        if rnd == 3 or found.sum() < 8:
+            break
+        model = RadialMap.fit(
+            pts[assign[found]],
+            screen_dots[found],
+            image_size,
+            lattice,
+            (rows, cols),
+            found,
+            correct=False,
+        )
+        new = invert(model, screen_dots, pred)
+        if not np.isfinite(new).all():
+            break
+        pred = new
+    return assign, pred
+
+
+def _find_by_model(
+    gray: NDArray[np.uint8],
+    white: NDArray[np.uint8],
+    black: NDArray[np.uint8],
+    blobs: _Blobs,
+    border: BorderPolygon,
+    rows: int,
+    cols: int,
+    screen_dots: FloatArray,
+    screen_size: tuple[int, int],
+    subpixel: bool,
+) -> DotDetection:
+    pts = blobs.centroid
+    image_size = (gray.shape[1], gray.shape[0])
+    assign, pred = _assign_by_model(pts, border, screen_dots, rows, cols, screen_size, image_size)
+    g = pred.reshape(rows, cols, 2)
+    wg = float(np.nanmedian(np.hypot(*(g[:, 1:] - g[:, :-1]).reshape(-1, 2).T))) if cols > 1 else 8
+    hg = float(np.nanmedian(np.hypot(*(g[1:] - g[:-1]).reshape(-1, 2).T))) if rows > 1 else 8
+    wg = wg if math.isfinite(wg) else 8.0
+    hg = hg if math.isfinite(hg) else 8.0
+    norm = _normalised(gray, white, black)
+    maps = _edge_maps(gray)
+    centers = np.full((rows * cols, 2), np.nan)
+    radius = np.full(rows * cols, np.nan)
+    for i in np.flatnonzero(assign >= 0):
+        pos, r = _refine(maps, norm, blobs, int(assign[i]), (wg, hg), subpixel)
+        centers[i] = pos
+        radius[i] = r
+    found = np.isfinite(centers[:, 0])
+    c = (rows // 2) * cols + cols // 2
+    cross_idx = [c, c - 1, c + 1, c - cols, c + cols]
+    cross = np.array([centers[k] if 0 <= k < rows * cols else (np.nan, np.nan) for k in cross_idx])
+    return DotDetection(
+        rows=rows,
+        centers=centers,
+        found=found,
+        radius=radius,
+        pitch=(wg, hg),
+        cross=cross,
+        cols=cols,
+        blobs=len(pts),
+        blob_uv=pts,
+    )
+
+
 def find_dots(
     dots: NDArray[np.uint8],
     white: NDArray[np.uint8],
     black: NDArray[np.uint8],
     tdm: NDArray[np.uint8],
     border: BorderPolygon,
-    n: int,
+    n: int | tuple[int, int],
     screen_dots: FloatArray,
     screen_size: tuple[int, int],
     *,
     subpixel: bool = True,
+    index: str = "model",
 ) -> DotDetection:
-    """Find the n x n dot centres (sec. 5.2.2b) in image pixels.
+    """Find the dot centres (sec. 5.2.2b) in image pixels.
 
-    ``screen_dots`` (n*n, 2) are the dots' screen pixels (the pattern's DotGrid) and
+    ``index`` says how each blob gets its grid index: ``model`` (default) predicts
+    every dot through a model of the screen -> image map (first the border
+    corners' homography, then the radial model fitted to the dots matched so far,
+    three rounds) and takes the blob nearest each prediction within a third of the
+    local spacing, so a short row spacing or a missing dot cannot shift the grid;
+    ``walk`` is the dissertation's walk out from the five-dot cross C0 described
+    below.
+
+    ``n``: dots per row and column, or (rows, cols). ``screen_dots``
+    (rows*cols, 2) are the dots' screen pixels (the pattern's DotGrid) and
     ``screen_size`` (W, H); they give the grid index of the centre dot C0 (through
     the homography of the border polygon's corners), so the grid is indexed right
     even when whole rows or columns are occluded. Walking out from C0 ring by ring,
@@ -198,6 +380,9 @@ def find_dots(
     takes the component nearest to it within the search range; the DTM then fixes
     the centre. Missing dots are NaN in ``centers``.
     """
+    rows, cols = (n, n) if isinstance(n, int) else (int(n[0]), int(n[1]))
+    if index not in ("model", "walk"):
+        raise CalibrationError(f"unknown dot indexing {index!r}: 'model' or 'walk'")
     gray = to_gray(dots)
     binary = binarize(gray, tdm)
     blobs = _components(binary, border)
@@ -206,14 +391,24 @@ def find_dots(
             f"dots not found: {len(blobs.area)} dot-like blobs in the dot image "
             "(is it the dot-matrix image, and is the screen showing it?)"
         )
+    if index == "model":
+        return _find_by_model(
+            gray, white, black, blobs, border, rows, cols, screen_dots, screen_size, subpixel
+        )
     centre = border.vertices[[1, 3, 5, 7]].mean(axis=0)
     pts = blobs.centroid
-    i0 = int(np.argmin(np.hypot(*(pts - centre).T)))
-    c0 = pts[i0]
-    nb = [_nearest_in_cone(c0, pts, d) for d in ((-1, 0), (1, 0), (0, -1), (0, 1))]
+    # C0: the blob nearest the screen centre that has its four cross neighbours
+    nb = [-1]
+    c0 = pts[0]
+    for i0 in np.argsort(np.hypot(*(pts - centre).T))[:12]:
+        c0 = pts[int(i0)]
+        nb = [_nearest_in_cone(c0, pts, d) for d in ((-1, 0), (1, 0), (0, -1), (0, 1))]
+        if min(nb) >= 0:
+            break
     if min(nb) < 0:
         raise CalibrationError(
-            "dots not found: no five-dot cross near the screen centre (dots occluded?)"
+            f"dots not found: {len(pts)} dot-like blobs but no five-dot cross near the screen "
+            "centre (dots occluded?)"
         )
     c1, c2, c3, c4 = (pts[k] for k in nb)
     wg = (float(np.hypot(*(c1 - c0))) + float(np.hypot(*(c2 - c0)))) / 2  # eq. 5.3
@@ -227,20 +422,16 @@ def find_dots(
     hmat = cv2.getPerspectiveTransform(corners_img, corners_scr)
     s0 = cv2.perspectiveTransform(c0.reshape(1, 1, 2).astype(np.float64), hmat)[0, 0]
     k0 = int(np.argmin(np.hypot(*(screen_dots - s0).T)))
-    r0, q0 = divmod(k0, n)
+    r0, q0 = divmod(k0, cols)
 
-    w_img = to_gray(white).astype(np.float32)
-    b_img = to_gray(black).astype(np.float32)
-    diff = w_img - b_img
-    norm = np.where(diff > MIN_CONTRAST, (gray - b_img) / np.maximum(diff, 1), 0)
-    norm = np.clip(norm, 0, 1).astype(np.float32)
+    norm = _normalised(gray, white, black)
     maps = _edge_maps(gray)
 
-    centers = np.full((n, n, 2), np.nan)
-    radius = np.full((n, n), np.nan)
+    centers = np.full((rows, cols, 2), np.nan)
+    radius = np.full((rows, cols), np.nan)
     used = np.zeros(len(pts), bool)
     order = sorted(
-        ((i, j) for i in range(n) for j in range(n)),
+        ((i, j) for i in range(rows) for j in range(cols)),
         key=lambda ij: (max(abs(ij[0] - r0), abs(ij[1] - q0)), abs(ij[0] - r0) + abs(ij[1] - q0)),
     )
     for i, j in order:
@@ -254,7 +445,7 @@ def find_dots(
             a = centers[i + di, j + dj]
             b = (
                 centers[i + 2 * di, j + 2 * dj]
-                if 0 <= i + 2 * di < n and 0 <= j + 2 * dj < n
+                if 0 <= i + 2 * di < rows and 0 <= j + 2 * dj < cols
                 else np.full(2, np.nan)
             )
             if np.isfinite(a).all():
@@ -268,30 +459,18 @@ def find_dots(
         cand = np.flatnonzero(inside)
         k = int(cand[np.argmin(np.hypot(*d[cand].T))])
         used[k] = True
-        r_cc = math.sqrt(blobs.area[k] / math.pi)
-        radii = np.arange(max(1.5, 0.7 * r_cc), 1.3 * r_cc + 1.0, 0.5)
-        half = (max(2, int(wg / 4)), max(2, int(hg / 4)))
-        start = (round(float(pts[k, 0])), round(float(pts[k, 1])))
-        half = (min(half[0], int(r_cc) + 2), min(half[1], int(r_cc) + 2))
-        x, y, r, _ = _dtm(maps, start, half, radii)
-        pos: tuple[float, float] = (float(x), float(y))
-        if subpixel:
-            for _ in range(10):
-                c = _centroid(norm, pos[0], pos[1], 1.25 * r + 2.0)
-                if c is None:
-                    break
-                moved = math.hypot(c[0] - pos[0], c[1] - pos[1])
-                pos = c
-                if moved < 1e-3:
-                    break
+        pos, r = _refine(maps, norm, blobs, k, (wg, hg), subpixel)
         centers[i, j] = pos
         radius[i, j] = r
     found = np.isfinite(centers[..., 0]).ravel()
     return DotDetection(
-        n=n,
+        rows=rows,
         centers=centers.reshape(-1, 2),
         found=found,
         radius=radius.ravel(),
         pitch=(wg, hg),
         cross=np.stack([c0, c1, c2, c3, c4]),
+        cols=cols,
+        blobs=len(pts),
+        blob_uv=pts,
     )

@@ -7,6 +7,7 @@ converted to grey by :func:`to_gray`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -223,3 +224,306 @@ def find_border(tdm: U8, *, samples: int = 48, step: int = 3) -> BorderPolygon:
             )
         verts[k] = v
     return BorderPolygon(np.stack([verts[i] for i in range(8)]).astype(np.float64))
+
+
+# ---------------------------------------------------------------- border from white - black
+
+
+@dataclass(frozen=True)
+class ScreenRegion:
+    """The screen as the white-minus-black difference shows it.
+
+    ``mask``: H x W bool, the screen's pixels (the largest region where the white
+    image is brighter than the black one by more than half the screen's typical
+    difference, holes filled). ``contrast``: that typical difference (grey
+    levels, median over the mask). ``touches``: image sides ("left", "top",
+    ...) the region touches (the screen is cut by the picture's edge).
+    """
+
+    mask: NDArray[np.bool_]
+    contrast: float
+    touches: tuple[str, ...]
+
+
+def _largest(
+    binary: NDArray[np.uint8], prefer: NDArray[np.bool_] | None = None
+) -> NDArray[np.bool_]:
+    """The largest 4-connected region of ``binary`` (the one overlapping ``prefer`` most,
+    when given)."""
+    count, labels, stats_, _ = cv2.connectedComponentsWithStats(binary, connectivity=4)
+    if count <= 1:
+        return np.zeros(binary.shape, bool)
+    if prefer is not None and prefer.any():
+        hits = np.bincount(labels[prefer], minlength=count)
+        hits[0] = 0
+        k = int(np.argmax(hits))
+        if hits[k] > 0:
+            return np.asarray(labels == k)
+    k = 1 + int(np.argmax(stats_[1:, cv2.CC_STAT_AREA]))
+    return np.asarray(labels == k)
+
+
+def screen_region(white: NDArray[np.uint8], black: NDArray[np.uint8]) -> ScreenRegion:
+    """The screen region from the white-minus-black difference.
+
+    Only the screen changes between the two patterns by a large positive amount:
+    the room may change (auto-exposure makes it brighter in the black image, a
+    window or the screen's spill light may change it), so the threshold is half
+    of the screen's own typical difference, found by Otsu's method on the
+    positive differences, gives the screen's core (the largest region above it);
+    then, in linear light, a pixel is screen where the difference exceeds half of
+    the screen's own level nearby (a Gaussian-weighted mean over the core), grown
+    from the core twice. A wall point next to the screen cannot join it unless the
+    wall itself changed by half as much as the screen did.
+    """
+    w = to_gray(white).astype(np.int16)
+    b = to_gray(black).astype(np.int16)
+    if w.shape != b.shape:
+        raise CalibrationError(f"white image is {w.shape[::-1]}, black image is {b.shape[::-1]}")
+    d = w - b
+    pos = np.clip(d, 0, 255).astype(np.uint8)
+    brighter = int(np.count_nonzero(pos > MIN_CONTRAST))
+    darker = int(np.count_nonzero(d < -2 * MIN_CONTRAST))
+    if brighter < 0.005 * d.size and darker >= 0.005 * d.size:
+        raise CalibrationError(
+            "the black image is brighter than the white image: are --white and --black swapped?"
+        )
+    if brighter < 0.005 * d.size:
+        raise CalibrationError(
+            "screen not found: the white image is brighter than the black one by more than "
+            f"{MIN_CONTRAST} grey levels in {brighter} pixels only (is the screen showing the "
+            "patterns, and are --white and --black the right way round?)"
+        )
+    otsu, _ = cv2.threshold(pos, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    first = pos > max(float(otsu), MIN_CONTRAST)
+    contrast = float(np.median(d[first])) if first.any() else 0.0
+    if contrast < MIN_CONTRAST:
+        raise CalibrationError(
+            f"screen not found: white minus black is only {contrast:.0f} grey levels on the "
+            f"screen (at least {MIN_CONTRAST}: more display brightness, less room light)"
+        )
+    # the screen: where the difference, in linear light, exceeds half of the screen's
+    # own level nearby (the level varies over the screen: hot spot, viewing angle)
+    lin = (np.arange(256) / 255.0) ** 2.2
+    dl = (lin[to_gray(white)] - lin[to_gray(black)]).astype(np.float32)
+    core = _largest(first.astype(np.uint8))
+    sigma = 0.04 * float(np.hypot(*d.shape))
+    for _ in range(2):
+        c32 = core.astype(np.float32)
+        num = cv2.GaussianBlur(dl * c32, (0, 0), sigma)
+        den = cv2.GaussianBlur(c32, (0, 0), sigma)
+        level = np.where(den > 1e-3, num / np.maximum(den, 1e-3), np.inf)
+        binary = np.asarray(
+            cv2.morphologyEx(
+                (dl > 0.5 * level).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)
+            ),
+            np.uint8,
+        )
+        grown = _largest(binary, prefer=core)
+        if not grown.any():
+            break
+        core = grown
+    region = core.astype(np.uint8)
+    # fill holes (dark details, an occluder inside the screen stays a notch)
+    contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    filled = np.zeros_like(region)
+    cv2.drawContours(filled, contours, -1, (1,), thickness=-1)
+    mask = filled.astype(bool)
+    h, wd = mask.shape
+    touches = tuple(  # a corner's tip on the edge is fine, a cut side is not
+        name
+        for name, edge in (
+            ("top", mask[0, :]),
+            ("bottom", mask[h - 1, :]),
+            ("left", mask[:, 0]),
+            ("right", mask[:, wd - 1]),
+        )
+        if np.count_nonzero(edge) > max(3, 0.03 * len(edge))
+    )
+    return ScreenRegion(mask, contrast, touches)
+
+
+def _side_fit(pts: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """A robust quadratic fit of contour points ``pts`` near the side a -> b, in the side's
+    frame (t along, s across): s = c0 + c1 t + c2 t^2; returns (c0, c1, c2, a, b)-frame
+    parameters as an array [c0, c1, c2]. Points off the fit by > max(1.5 px, 3 MAD) are
+    dropped (an occluder's notch, a corner's rounding)."""
+    e = b - a
+    length = float(np.hypot(*e))
+    ux = e / length
+    uy = np.array([-ux[1], ux[0]])
+    t = (pts - a) @ ux
+    s = (pts - a) @ uy
+    keep = (t > 0.04 * length) & (t < 0.96 * length)
+    coef = np.zeros(3)
+    for _ in range(6):
+        if np.count_nonzero(keep) < 6:
+            break
+        A = np.column_stack([np.ones(np.count_nonzero(keep)), t[keep], t[keep] ** 2])
+        coef, *_ = np.linalg.lstsq(A, s[keep], rcond=None)
+        r = s - (coef[0] + coef[1] * t + coef[2] * t * t)
+        mad = float(np.median(np.abs(r[keep]))) * 1.4826
+        new = keep & (np.abs(r) <= max(1.5, 3.0 * mad))
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    return np.asarray(coef, np.float64)
+
+
+def _side_point(coef: FloatArray, a: FloatArray, b: FloatArray, t: float) -> FloatArray:
+    e = b - a
+    length = float(np.hypot(*e))
+    ux = e / length
+    uy = np.array([-ux[1], ux[0]])
+    tt = t * length
+    s = coef[0] + coef[1] * tt + coef[2] * tt * tt
+    return np.asarray(a + tt * ux + s * uy, np.float64)
+
+
+def _four_corners(hull: FloatArray) -> FloatArray:
+    """Four corners of a convex outline (4, 2), clockwise from the top-left one: the
+    polygon approximation with exactly four vertices (tolerance searched), else the
+    hull points extreme along the diagonals."""
+    h32 = hull.astype(np.float32).reshape(-1, 1, 2)
+    peri = cv2.arcLength(h32, True)
+    quad = None
+    lo, hi = 0.001, 0.2
+    for _ in range(30):
+        eps = math.sqrt(lo * hi)
+        approx = cv2.approxPolyDP(h32, eps * peri, True).reshape(-1, 2).astype(np.float64)
+        if len(approx) == 4:
+            quad = approx
+            break
+        lo, hi = (eps, hi) if len(approx) > 4 else (lo, eps)
+    centre = hull.mean(axis=0)
+    if quad is None:
+        pts = []
+        for dx, dy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+            score = (hull[:, 0] - centre[0]) * dx + (hull[:, 1] - centre[1]) * dy
+            pts.append(hull[int(np.argmax(score))])
+        return np.array(pts)
+    ang = np.arctan2(quad[:, 1] - centre[1], quad[:, 0] - centre[0])
+    quad = quad[np.argsort(ang)]  # clockwise on the screen (v down)
+    first = int(np.argmin(quad[:, 0] + quad[:, 1]))
+    return np.roll(quad, -first, axis=0)
+
+
+def border_from_region(region: ScreenRegion) -> BorderPolygon:
+    """The eight-sided border polygon (P0 top-left corner, P1 top side, ... as
+    :class:`BorderPolygon`) fitted to the screen region's outline.
+
+    Rough corners from the convex hull of the outline (an occluder's notch is
+    bridged), then each side is a robust quadratic fit to the outline points
+    along it (lens distortion bends the sides), each corner the intersection of
+    its two sides' fits, each mid-side vertex the side's fit at its middle.
+    """
+    if region.touches:
+        raise CalibrationError(
+            "the screen is cut by the picture's "
+            + " and ".join(region.touches)
+            + " edge: the whole screen must be in the picture (move or turn the camera)"
+        )
+    m = region.mask.astype(np.uint8)
+    contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    c = max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
+    hull = cv2.convexHull(c.astype(np.float32)).reshape(-1, 2).astype(np.float64)
+    quad = _four_corners(hull)
+    coefs = []
+    for i in range(4):
+        a, b = quad[i], quad[(i + 1) % 4]
+        e = b - a
+        length = float(np.hypot(*e))
+        ux = e / length
+        uy = np.array([-ux[1], ux[0]])
+        t = (c - a) @ ux
+        s = (c - a) @ uy
+        near = (t > -0.05 * length) & (t < 1.05 * length) & (np.abs(s) < 0.12 * length + 3)
+        coefs.append(_side_fit(c[near], a, b))
+    corners = []
+    for i in range(4):  # corner i: sides i-1 (ending at it) and i (starting at it)
+        j = (i - 1) % 4
+        p = quad[i].copy()
+        for _ in range(20):  # alternate projections onto the two fitted curves
+            p_old = p
+            for k, side in ((j, 1.0), (i, 0.0)):
+                a, b = quad[k], quad[(k + 1) % 4]
+                e = b - a
+                length = float(np.hypot(*e))
+                t = float((p - a) @ (e / length)) / length
+                p = _side_point(coefs[k], a, b, t)
+                del side
+            if np.hypot(*(p - p_old)) < 1e-4:
+                break
+        corners.append(p)
+    mids = [_side_point(coefs[i], quad[i], quad[(i + 1) % 4], 0.5) for i in range(4)]
+    # pixel-centre contour -> the edge half a pixel further out (the mask's boundary)
+    v = np.array(
+        [corners[0], mids[0], corners[1], mids[1], corners[2], mids[2], corners[3], mids[3]]
+    )
+    out = v + 0.5 * np.sign(v - v.mean(axis=0)) * (np.abs(v - v.mean(axis=0)) > 1)
+    return BorderPolygon(np.asarray(out, np.float64))
+
+
+def edge_points(
+    white: NDArray[np.uint8],
+    black: NDArray[np.uint8],
+    border: BorderPolygon,
+    *,
+    per_side: int = 32,
+    gamma: float = 2.2,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Sub-pixel points on the lit area's top, right, bottom and left edges: (K, 4)
+    arrays of (u, v, nu, nv), image px and the outward unit normal.
+
+    Along each side of the border polygon, ``per_side`` profiles across the edge of
+    the white-minus-black difference, in linear light (grey levels undone with
+    ``gamma``): the edge is where the profile crosses halfway between its inside and
+    outside levels (a blurred edge crosses there whatever the blur). A profile whose
+    inside is not clearly brighter than its outside (an occluder, a corner) is
+    dropped.
+    """
+    w = (to_gray(white).astype(np.float32) / 255.0) ** gamma
+    b = (to_gray(black).astype(np.float32) / 255.0) ** gamma
+    d = np.ascontiguousarray(w - b)
+    v = border.vertices
+    centre = v.mean(axis=0)
+    offs = np.arange(-5.0, 5.0001, 0.25)
+    out: list[FloatArray] = []
+    for side in range(4):
+        a, m, c = v[2 * side], v[2 * side + 1], v[(2 * side + 2) % 8]
+        t = (np.arange(per_side) + 0.5) / per_side
+        t = t[(t > 0.06) & (t < 0.94)]
+        first = t < 0.5
+        p = np.where(
+            first[:, None], a + (m - a) * (2 * t)[:, None], m + (c - m) * (2 * t - 1)[:, None]
+        )
+        tang = np.where(first[:, None], (m - a)[None, :], (c - m)[None, :])
+        tang /= np.linalg.norm(tang, axis=1, keepdims=True)
+        nrm = np.stack([tang[:, 1], -tang[:, 0]], axis=1)
+        flip = ((p - centre) * nrm).sum(axis=1) < 0
+        nrm[flip] *= -1  # outward
+        q = p[:, None, :] + offs[None, :, None] * nrm[:, None, :]
+        prof = cv2.remap(
+            d,
+            q[..., 0].astype(np.float32),
+            q[..., 1].astype(np.float32),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        ).astype(np.float64)
+        inside = np.median(prof[:, :8], axis=1)  # offsets -5 .. -3.25
+        outside = np.median(prof[:, -8:], axis=1)
+        half = 0.5 * (inside + outside)
+        good = inside - outside > 0.15 * max(float(np.median(inside)), 1e-6)
+        pts = []
+        for k in np.flatnonzero(good):
+            s = prof[k] - half[k]
+            cross = np.flatnonzero((s[:-1] > 0) & (s[1:] <= 0))
+            if len(cross) == 0:
+                continue
+            j = int(cross[np.argmin(np.abs(offs[cross]))])
+            f = s[j] / (s[j] - s[j + 1])
+            o = offs[j] + f * (offs[j + 1] - offs[j])
+            if abs(o) < 4.0:
+                pts.append(np.r_[p[k] + o * nrm[k], nrm[k]])
+        out.append(np.asarray(pts, np.float64).reshape(-1, 4))
+    return out[0], out[1], out[2], out[3]

@@ -54,26 +54,28 @@ def landmark_grid(
     border: BorderPolygon,
     screen_size: tuple[int, int],
 ) -> LandmarkGrid:
-    """Build the (N+2) x (N+2) grid from (N, N, 2) dot centres (no NaN) and the border.
+    """Build the (R+2) x (C+2) grid from (R, C, 2) dot centres (no NaN) and the border.
 
     Left/right extensions use each row's first/last two dots, top/bottom each column's
     (Fig. 5.11); their screen coordinates lie on the screen edge (x = -0.5 or W - 0.5,
     y = -0.5 or H - 0.5) at the row's (column's) dot coordinate.
     """
-    n = dots_image.shape[0]
+    rows, cols = dots_image.shape[:2]
     sw, sh = screen_size
-    img = np.full((n + 2, n + 2, 2), np.nan)
-    scr = np.full((n + 2, n + 2, 2), np.nan)
+    img = np.full((rows + 2, cols + 2, 2), np.nan)
+    scr = np.full((rows + 2, cols + 2, 2), np.nan)
     img[1:-1, 1:-1] = dots_image
     scr[1:-1, 1:-1] = dots_screen
-    for k in range(n):
-        row, col = dots_image[k], dots_image[:, k]
+    for k in range(rows):
+        row = dots_image[k]
         img[k + 1, 0] = ray_polygon(row[0], row[0] - row[1], border)
         img[k + 1, -1] = ray_polygon(row[-1], row[-1] - row[-2], border)
-        img[0, k + 1] = ray_polygon(col[0], col[0] - col[1], border)
-        img[-1, k + 1] = ray_polygon(col[-1], col[-1] - col[-2], border)
         scr[k + 1, 0] = (-0.5, dots_screen[k, 0, 1])
         scr[k + 1, -1] = (sw - 0.5, dots_screen[k, -1, 1])
+    for k in range(cols):
+        col = dots_image[:, k]
+        img[0, k + 1] = ray_polygon(col[0], col[0] - col[1], border)
+        img[-1, k + 1] = ray_polygon(col[-1], col[-1] - col[-2], border)
         scr[0, k + 1] = (dots_screen[0, k, 0], -0.5)
         scr[-1, k + 1] = (dots_screen[-1, k, 0], sh - 0.5)
     v = border.vertices

@@ -2,7 +2,8 @@
 
 Fig. 5.1: (a) a white rectangle, (b) a black rectangle, (c) "a matrix of white
 dots on a black rectangular shape". The dissertation does not give the dot
-layout in numbers; this module fixes it so that the N x N dots and the screen
+layout in numbers. Any rows x columns and margins are accepted
+(:func:`dot_grid`); the default layout fixes it so that the N x N dots and the screen
 border cut the screen into (N + 1) x (N + 1) equal cells (sec. 5.2.3: the N x N
 dots plus the extended dot centres on the border make an (N + 2) x (N + 2)
 grid with (N + 1) x (N + 1) basic regions inside the screen):
@@ -22,8 +23,9 @@ centroid is its centre.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,51 +53,152 @@ def black_pattern(width: int, height: int) -> NDArray[np.uint8]:
 
 @dataclass(frozen=True)
 class DotGrid:
-    """Where the dots of :func:`dot_pattern` are, in screen pixels.
+    """Where the dots of :func:`dot_pattern` are, in screen pixels: the dot layout.
 
-    ``centers`` is (n*n, 2) float (x, y), row-major from the top-left dot:
-    index ``row * n + col``. ``spacing_px`` is (sx, sy) between neighbouring
-    dots (also the margin from the screen edge to the outer dots). ``polarity``
-    is the dots' colour: ``"white"`` on black (the dissertation's) or
-    ``"black"`` on white.
+    ``rows`` x ``cols`` dots; ``centers`` is (rows*cols, 2) float (x, y),
+    row-major from the top-left dot: index ``row * cols + col``.
+    ``spacing_px`` is (sx, sy) between neighbouring dots; ``margin_px`` (mx, my)
+    from the screen's edge (x = -0.5, y = -0.5) to the outer dots' centres.
+    ``polarity`` is the dots' colour: ``"white"`` on black (the dissertation's)
+    or ``"black"`` on white. ``n`` is ``rows`` for a square grid.
     """
 
-    n: int
+    rows: int
     centers: NDArray[np.float64]
     radius_px: float
     spacing_px: tuple[float, float] = (0.0, 0.0)
     polarity: Polarity = "white"
     screen_px: tuple[int, int] = (0, 0)
+    cols: int = 0
+    margin_px: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if self.cols == 0:
+            object.__setattr__(self, "cols", self.rows)
+
+    @property
+    def n(self) -> int:
+        """Dots per row and column of a square grid (ValueError for rows != cols)."""
+        if self.rows != self.cols:
+            raise ValueError(f"a {self.rows} x {self.cols} dot grid has no single n")
+        return self.rows
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols)."""
+        return self.rows, self.cols
+
+    @property
+    def count(self) -> int:
+        """rows * cols."""
+        return self.rows * self.cols
 
     def grid(self) -> NDArray[np.float64]:
-        """The centres as (n, n, 2): ``grid()[row, col] = (x, y)``."""
-        out: NDArray[np.float64] = self.centers.reshape(self.n, self.n, 2)
+        """The centres as (rows, cols, 2): ``grid()[row, col] = (x, y)``."""
+        out: NDArray[np.float64] = self.centers.reshape(self.rows, self.cols, 2)
         return out
 
+    def describe(self) -> str:
+        """``9 x 9 dots, margin 192.0 x 108.0 px, radius 21.6 px`` (rows x columns)."""
+        mx, my = self.margin_px
+        return (
+            f"{self.rows} x {self.cols} dots, margin {mx:.1f} x {my:.1f} px, "
+            f"radius {self.radius_px:.1f} px"
+        )
 
-def dot_grid(width: int, height: int, n: int = 9, radius_px: float | None = None) -> DotGrid:
+    def to_dict(self) -> dict[str, object]:
+        """The layout as written to layout.json (see :func:`layout_from_dict`)."""
+        return {
+            "kind": "screen-dot-layout",
+            "screen": list(self.screen_px),
+            "rows": self.rows,
+            "cols": self.cols,
+            "margin_px": list(self.margin_px),
+            "radius_px": self.radius_px,
+            "polarity": self.polarity,
+            "conventions": "screen px, centre of the top-left pixel = (0, 0); margin from the "
+            "screen edge (-0.5) to the outer dot centres",
+        }
+
+
+def layout_from_dict(d: Mapping[str, Any], where: str = "layout") -> DotGrid:
+    """The DotGrid a :meth:`DotGrid.to_dict` document describes; errors name the key."""
+    try:
+        w, h = (int(v) for v in d["screen"])
+        rows, cols = int(d["rows"]), int(d["cols"])
+        mx, my = (float(v) for v in d["margin_px"])
+        radius = float(d["radius_px"])
+        polarity = str(d.get("polarity", "white"))
+    except KeyError as exc:
+        raise ValueError(f"{where}: missing key {exc.args[0]!r}") from None
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{where}: screen, rows, cols, margin_px, radius_px must be numbers"
+        ) from None
+    if polarity not in ("white", "black"):
+        raise ValueError(f"{where}: polarity {polarity!r}: 'white' or 'black'")
+    g = dot_grid(w, h, rows=rows, cols=cols, margin_px=(mx, my), radius_px=radius)
+    return replace(g, polarity=polarity)  # type: ignore[arg-type]
+
+
+def dot_grid(
+    width: int,
+    height: int,
+    n: int = 9,
+    radius_px: float | None = None,
+    *,
+    rows: int | None = None,
+    cols: int | None = None,
+    margin: float | tuple[float, float] | None = None,
+    margin_px: tuple[float, float] | None = None,
+) -> DotGrid:
     """The dot layout of :func:`dot_pattern` without drawing it.
+
+    ``rows`` x ``cols`` dots (default ``n`` x ``n``). The outer dots' centres
+    sit ``margin`` (a fraction of the screen's width and height, one number or
+    (x, y)) or ``margin_px`` (screen px) from the screen's edge; by default
+    one dot spacing (the dissertation-style layout: the dots and the border
+    cut the screen into (cols + 1) x (rows + 1) equal cells). Radius default:
+    ``0.2 * min(spacing)``.
 
     Example:
         >>> g = dot_grid(1920, 1080, 9)
         >>> g.centers[0].tolist(), g.centers[-1].tolist(), round(g.radius_px, 2)
         ([191.5, 107.5], [1727.5, 971.5], 21.6)
+        >>> g = dot_grid(1920, 1080, rows=7, cols=7, margin=0.05)
+        >>> g.centers[0].tolist(), g.shape
+        ([95.5, 53.5], (7, 7))
     """
     _check_size(width, height)
-    if n < 2:
-        raise ValueError(f"dot matrix n = {n}: at least 2 x 2 dots")
-    sx, sy = width / (n + 1), height / (n + 1)
+    rows = n if rows is None else int(rows)
+    cols = n if cols is None else int(cols)
+    if rows < 2 or cols < 2:
+        raise ValueError(f"dot matrix {rows} x {cols}: at least 2 x 2 dots")
+    if margin_px is not None:
+        mx, my = float(margin_px[0]), float(margin_px[1])
+    elif margin is not None:
+        fx, fy = (margin, margin) if isinstance(margin, int | float) else margin
+        if not (0.0 <= fx < 0.5 and 0.0 <= fy < 0.5):
+            raise ValueError(f"dot margin {fx:g}, {fy:g}: fractions of the screen in [0, 0.5)")
+        mx, my = fx * width, fy * height
+    else:
+        mx, my = width / (cols + 1), height / (rows + 1)
+    sx, sy = (width - 2 * mx) / (cols - 1), (height - 2 * my) / (rows - 1)
+    if sx <= 0 or sy <= 0:
+        raise ValueError(f"dot margin {mx:g} x {my:g} px leaves no room on {width}x{height}")
     r = 0.2 * min(sx, sy) if radius_px is None else float(radius_px)
     if not 0.5 <= r < 0.5 * min(sx, sy):
         raise ValueError(
             f"dot radius {r:g} px: must be >= 0.5 and less than half the spacing "
-            f"({0.5 * min(sx, sy):g} px for {n} x {n} dots on {width}x{height})"
+            f"({0.5 * min(sx, sy):g} px for {rows} x {cols} dots on {width}x{height})"
         )
-    xs = sx * np.arange(1, n + 1) - 0.5
-    ys = sy * np.arange(1, n + 1) - 0.5
+    if r > min(mx, my) + 0.5:
+        raise ValueError(f"dot radius {r:g} px: the outer dots would cross the screen's edge")
+    xs = mx + sx * np.arange(cols) - 0.5
+    ys = my + sy * np.arange(rows) - 0.5
     xx, yy = np.meshgrid(xs, ys)
     centers = np.stack([xx.ravel(), yy.ravel()], axis=1).astype(np.float64)
-    return DotGrid(n, centers, r, (sx, sy), "white", (width, height))
+    return DotGrid(rows, centers, r, (sx, sy), "white", (width, height), cols, (mx, my))
 
 
 def disc_coverage(
@@ -130,15 +233,18 @@ def dot_pattern(
     radius_px: float | None = None,
     *,
     polarity: Polarity = "white",
+    layout: DotGrid | None = None,
 ) -> tuple[NDArray[np.uint8], DotGrid]:
     """The dot-matrix pattern (Fig. 5.1c) and where its dots are.
 
     Args:
         width, height: screen size, pixels.
-        n: dots per row and per column.
+        n: dots per row and per column (when no ``layout``).
         radius_px: dot radius in screen pixels; default ``0.2 * min(spacing)``.
         polarity: ``"white"`` dots on black (the dissertation's, default) or
             ``"black"`` dots on white.
+        layout: any :func:`dot_grid` layout (rows x columns, margins, radius);
+            its polarity is replaced by ``polarity``.
 
     Returns:
         (image, grid): ``height x width`` uint8, antialiased; the dot layout.
@@ -150,8 +256,10 @@ def dot_pattern(
     """
     if polarity not in ("white", "black"):
         raise ValueError(f"polarity {polarity!r}: 'white' or 'black'")
-    g = dot_grid(width, height, n, radius_px)
-    g = DotGrid(g.n, g.centers, g.radius_px, g.spacing_px, polarity, g.screen_px)
+    g = dot_grid(width, height, n, radius_px) if layout is None else layout
+    if g.screen_px != (width, height):
+        raise ValueError(f"dot layout for {g.screen_px}, screen is {(width, height)}")
+    g = replace(g, polarity=polarity)
     cov = np.zeros((height, width), np.float64)
     for x, y in g.centers:
         rows, cols, c = disc_coverage(float(x), float(y), g.radius_px, (height, width))

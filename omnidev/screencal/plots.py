@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from omnidev.atomic import atomic_path
+from omnidev.screencal.calibration import ScreenCalibration
 from omnidev.screencal.evaluate import MethodErrors
 
 
@@ -76,3 +77,70 @@ def plot_error_vectors(
     with atomic_path(Path(path), force=force) as tmp:
         fig.savefig(tmp, dpi=90, format="png")
     plt.close(fig)
+
+
+def plot_calibration(
+    calib: ScreenCalibration,
+    dots_image: np.ndarray,
+    path: Path,
+    *,
+    lines: int = 10,
+    force: bool = True,
+) -> None:
+    """The calibration over the dot image, no truth needed: the border polygon (yellow),
+    the dots found (green) and missed (red crosses), and lines of constant screen x and
+    y every 1/``lines`` of the screen, mapped into the image through the calibration's
+    inverse (cyan): they should run along the screen's rows and columns of dots."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    img = np.asarray(dots_image)
+    h, w = img.shape[:2]
+    sw, sh = calib.screen_size
+    fig, ax = plt.subplots(figsize=(10, 10 * h / w))
+    ax.imshow(img if img.ndim == 2 else img[..., ::-1], cmap="gray", vmin=0, vmax=255)
+    v = np.vstack([calib.border.vertices, calib.border.vertices[:1]])
+    ax.plot(v[:, 0], v[:, 1], "-", color="yellow", lw=1)
+    found = np.isfinite(calib.dots_image).all(axis=1)
+    lay = calib.layout
+    ax.plot(calib.dots_image[found, 0], calib.dots_image[found, 1], "+", color="lime", ms=6)
+    if lay is not None and (~found).any():
+        guess = _screen_to_image(calib, lay.centers[~found])
+        ax.plot(guess[:, 0], guess[:, 1], "x", color="red", ms=6)
+    t = np.linspace(-0.5, 1, 200)
+    for k in range(lines + 1):
+        f = k / lines
+        for xy in (
+            np.column_stack([np.full_like(t, f * sw - 0.5), t * sh]),
+            np.column_stack([t * sw, np.full_like(t, f * sh - 0.5)]),
+        ):
+            xy = xy[(xy[:, 0] >= -0.5) & (xy[:, 1] >= -0.5)]
+            xy = xy[(xy[:, 0] <= sw - 0.5) & (xy[:, 1] <= sh - 0.5)]
+            uv = _screen_to_image(calib, xy)
+            ax.plot(uv[:, 0], uv[:, 1], "-", color="cyan", lw=0.6)
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_title(
+        f"{calib.method}: {calib.dots_used} dots used; screen grid every 1/{lines}", fontsize=9
+    )
+    fig.tight_layout()
+    with atomic_path(Path(path), force=force) as tmp:
+        fig.savefig(tmp, dpi=90, format="png")
+    plt.close(fig)
+
+
+def _screen_to_image(calib: ScreenCalibration, xy: np.ndarray) -> np.ndarray:
+    """Image px of screen points through the calibration's inverse (Newton from a
+    homography fitted to the found dots)."""
+    from omnidev.screencal.transform import HomographyMap, invert
+
+    found = np.isfinite(calib.dots_image).all(axis=1)
+    lay = calib.layout
+    if lay is None or found.sum() < 4:
+        return np.full((len(xy), 2), np.nan)
+    h = HomographyMap.fit(lay.centers[found], calib.dots_image[found])
+    start = h(np.asarray(xy, np.float64))
+    out: np.ndarray = invert(calib.transform, np.asarray(xy, np.float64), start)
+    return out

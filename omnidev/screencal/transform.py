@@ -22,6 +22,7 @@ defined. Methods:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Protocol
 
 import cv2
@@ -110,6 +111,25 @@ def inverse_bilinear(quads: FloatArray, pts: FloatArray, iterations: int = 8) ->
     return st
 
 
+def inverse_bilinear_pairs(quads: FloatArray, pts: FloatArray, iterations: int = 8) -> FloatArray:
+    """(s, t) of point k in quad k, (K, 2): :func:`inverse_bilinear` for given pairs."""
+    if len(pts) == 0:
+        return np.zeros((0, 2))
+    q0, q1, q2, q3 = (quads[:, k] for k in range(4))
+    out = np.full((len(pts), 2), 0.5)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for _ in range(iterations):
+            s, t = out[:, :1], out[:, 1:]
+            f = (1 - s) * (1 - t) * q0 + s * (1 - t) * q1 + s * t * q2 + (1 - s) * t * q3 - pts
+            ds = (1 - t) * (q1 - q0) + t * (q2 - q3)
+            dt = (1 - s) * (q3 - q0) + s * (q2 - q1)
+            det = ds[:, 0] * dt[:, 1] - ds[:, 1] * dt[:, 0]
+            det = np.where(np.abs(det) < 1e-12, np.nan, det)
+            out[:, 0] -= (f[:, 0] * dt[:, 1] - f[:, 1] * dt[:, 0]) / det
+            out[:, 1] -= (ds[:, 0] * f[:, 1] - ds[:, 1] * f[:, 0]) / det
+    return out
+
+
 class CellMap:
     """Interpolation in the basic regions of the landmark grid (``idw`` or ``bilinear``)."""
 
@@ -122,39 +142,49 @@ class CellMap:
         self.quads_image, self.quads_screen = grid_cells(grid, image_size)
 
     def params(self) -> Params:
-        n2 = self.grid.image.shape[0]
+        r2, c2 = self.grid.image.shape[:2]
         return {
-            "grid_image": self.grid.image.reshape(n2 * n2, 2),
-            "grid_screen": self.grid.screen.reshape(n2 * n2, 2),
+            "grid_image": self.grid.image.reshape(r2 * c2, 2),
+            "grid_screen": self.grid.screen.reshape(r2 * c2, 2),
+            "grid_shape": np.array([r2, c2], np.float64),
         }
 
     def __call__(self, uv: FloatArray) -> FloatArray:
         pts = _as_points(uv)
         out = np.full(pts.shape, np.nan)
         eps = 1e-6
+        qi = self.quads_image
+        lo_b, hi_b = qi.min(axis=1) - 1e-6, qi.max(axis=1) + 1e-6  # a cell lies in its corners' box
         for lo in range(0, len(pts), 4096):
             chunk = pts[lo : lo + 4096]
-            st = inverse_bilinear(self.quads_image, chunk)
-            inside = np.all((st >= -eps) & (st <= 1 + eps), axis=2)
-            inside &= np.isfinite(st).all(axis=2)
-            has = inside.any(axis=1)
-            q = np.argmax(inside, axis=1)[has]
-            p = chunk[has]
-            corners_s = self.quads_screen[q]
+            inbox = (
+                (chunk[:, None, 0] >= lo_b[None, :, 0])
+                & (chunk[:, None, 0] <= hi_b[None, :, 0])
+                & (chunk[:, None, 1] >= lo_b[None, :, 1])
+                & (chunk[:, None, 1] <= hi_b[None, :, 1])
+            )
+            pi, cq = np.nonzero(inbox)  # candidate (point, cell) pairs, cells ascending
+            st = inverse_bilinear_pairs(qi[cq], chunk[pi])
+            ok = np.all((st >= -eps) & (st <= 1 + eps), axis=1) & np.isfinite(st).all(axis=1)
+            pi, cq, st = pi[ok], cq[ok], st[ok]
+            first = np.r_[True, pi[1:] != pi[:-1]]  # the lowest-numbered cell holding it
+            pi, cq, st = pi[first], cq[first], st[first]
+            p = chunk[pi]
+            corners_s = self.quads_screen[cq]
             if self.name == "bilinear":
-                s, t = st[has, q, :1], st[has, q, 1:]
+                s_, t_ = st[:, :1], st[:, 1:]
                 res = (
-                    (1 - s) * (1 - t) * corners_s[:, 0]
-                    + s * (1 - t) * corners_s[:, 1]
-                    + s * t * corners_s[:, 2]
-                    + (1 - s) * t * corners_s[:, 3]
+                    (1 - s_) * (1 - t_) * corners_s[:, 0]
+                    + s_ * (1 - t_) * corners_s[:, 1]
+                    + s_ * t_ * corners_s[:, 2]
+                    + (1 - s_) * t_ * corners_s[:, 3]
                 )
             else:  # eqs. 5.4-5.5: w_k = 1 / d_k
-                d = np.hypot(*(self.quads_image[q] - p[:, None, :]).transpose(2, 0, 1))
+                d = np.hypot(*(qi[cq] - p[:, None, :]).transpose(2, 0, 1))
                 wgt = 1.0 / np.maximum(d, 1e-9)
                 res = (wgt[..., None] * corners_s).sum(axis=1) / wgt.sum(axis=1)[:, None]
             block = out[lo : lo + 4096]
-            block[has] = res
+            block[pi] = res
         return out
 
 
@@ -189,13 +219,16 @@ class HomographyMap:
 def _radial_apply(p: FloatArray, pts: FloatArray, scale: float) -> FloatArray:
     """Image px -> screen px of the radial model with parameter vector ``p``:
     [cx, cy, k1, k2, k3, h11, h12, h13, h21, h22, h23, h31, h32] (h33 = 1)."""
-    c = p[:2]
-    q = (pts - c) / scale
-    r2 = (q**2).sum(axis=1, keepdims=True)
-    qu = q * (1 + p[2] * r2 + p[3] * r2**2 + p[4] * r2**3)
-    hm = np.append(p[5:], 1.0).reshape(3, 3)
-    h = np.c_[qu, np.ones(len(qu))] @ hm.T
-    return np.asarray(h[:, :2] / h[:, 2:], np.float64)
+    x = (pts[:, 0] - p[0]) / scale
+    y = (pts[:, 1] - p[1]) / scale
+    r2 = x * x + y * y
+    f = 1 + r2 * (p[2] + r2 * (p[3] + r2 * p[4]))
+    x, y = x * f, y * f
+    den = p[11] * x + p[12] * y + 1.0
+    out = np.empty((len(pts), 2))
+    out[:, 0] = (p[5] * x + p[6] * y + p[7]) / den
+    out[:, 1] = (p[8] * x + p[9] * y + p[10]) / den
+    return out
 
 
 class RadialMap:
@@ -213,7 +246,7 @@ class RadialMap:
     ) -> None:
         self.p = np.asarray(p, np.float64)
         self.scale = float(scale)
-        self.residual = np.asarray(residual, np.float64)  # (n, n, 2) screen px
+        self.residual = np.asarray(residual, np.float64)  # (rows, cols, 2) screen px
         self.lattice = np.asarray(lattice, np.float64)  # x0, y0, sx, sy of the dot lattice
 
     @classmethod
@@ -223,12 +256,24 @@ class RadialMap:
         xy: FloatArray,
         image_size: tuple[int, int],
         lattice: FloatArray,
-        n: int,
+        n: int | tuple[int, int],
         found: NDArray[np.bool_],
         *,
         correct: bool = True,
+        edges: Sequence[tuple[FloatArray, int, float]] | None = None,
+        edge_weight: float = 0.2,
     ) -> RadialMap:
-        """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2)."""
+        """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2); ``n``:
+        the lattice's dots per side, or (rows, cols); ``found`` (rows*cols,).
+
+        ``edges``: points on the screen's edges, (K, 4) arrays of image px and outward
+        normal, each set with the screen coordinate (0: x, 1: y) and value it must map
+        to (e.g. the top edge: y = -0.5); each point weighs ``edge_weight`` of a dot
+        coordinate. They hold the model where it extrapolates beyond the outer dots.
+        One common offset along the normals is fitted with them: where an edge
+        appears to be depends on blur and the camera's tone curve, its shape does
+        not."""
+        rows, cols = (n, n) if isinstance(n, int) else (int(n[0]), int(n[1]))
         w, h = image_size
         scale = 0.5 * float(np.hypot(w, h))
         c0 = np.array([(w - 1) / 2, (h - 1) / 2])
@@ -237,58 +282,81 @@ class RadialMap:
         p0 = np.concatenate([c0, [0.0, 0.0, 0.0], hmat.ravel()[:8]])
         sx = float(np.ptp(xy[:, 0])) or 1.0
 
-        def resid(p: FloatArray, k: int) -> FloatArray:
-            pp = p.copy()
-            pp[2 + k : 5] = 0.0
-            return (_radial_apply(pp, uv, scale) - xy).ravel() / sx
+        edge_sets = [
+            (np.asarray(e, np.float64).reshape(-1, 4), a, v) for e, a, v in edges or () if len(e)
+        ]
+        weight = math.sqrt(edge_weight)
+        use = bool(edge_sets)
 
-        p = p0
+        def resid(p: FloatArray, k: int) -> FloatArray:
+            pp = p[:13].copy()
+            pp[2 + k : 5] = 0.0
+            parts = [(_radial_apply(pp, uv, scale) - xy).ravel()]
+            for e, axis, value in edge_sets:  # edge points land on their screen edge
+                pts = e[:, :2] + p[13] * e[:, 2:]  # shifted along the normal by delta
+                parts.append(weight * (_radial_apply(pp, pts, scale)[:, axis] - value))
+            return np.concatenate(parts) / sx
+
+        p = np.append(p0, 0.0)  # the last: the edges' common offset delta (image px)
         terms = 3 if found.all() else 2  # a partial grid: fewer terms extrapolate better
         for k in range(1, terms + 1):  # grow the radial series: stabler than all at once
 
             def cost(q: FloatArray, k: int = k) -> FloatArray:
+                if not use:
+                    q = np.append(q[:13], 0.0)
                 return resid(q, k)
 
-            p = levenberg_marquardt(cost, p)
+            p = (
+                levenberg_marquardt(cost, p)
+                if use
+                else np.append(levenberg_marquardt(cost, p[:13]), 0.0)
+            )
             p[2 + k : 5] = 0.0
-        model = cls(p, scale, np.zeros((n, n, 2)), lattice)
+        p = p[:13]
+        model = cls(p, scale, np.zeros((rows, cols, 2)), lattice)
         if correct:
-            res = np.zeros((n * n, 2))
+            res = np.zeros((rows * cols, 2))
             res[found] = xy - _radial_apply(p, uv, scale)
-            model.residual = res.reshape(n, n, 2)
+            model.residual = res.reshape(rows, cols, 2)
         return model
 
     def params(self) -> Params:
-        n = self.residual.shape[0]
+        rows, cols = self.residual.shape[:2]
         return {
             "radial_params": self.p,
             "radial_scale": np.array([self.scale]),
-            "residual": self.residual.reshape(n * n, 2),
+            "residual": self.residual.reshape(rows * cols, 2),
+            "residual_shape": np.array([rows, cols], np.float64),
             "lattice": self.lattice,
         }
 
     @classmethod
     def from_params(cls, params: Params) -> RadialMap:
         res = params["residual"]
-        n = math.isqrt(len(res))
+        shape = params.get("residual_shape")
+        if shape is None:  # format 1: square
+            n = math.isqrt(len(res))
+            rows, cols = n, n
+        else:
+            rows, cols = (round(float(v)) for v in np.ravel(shape)[:2])
         return cls(
             params["radial_params"].ravel(),
             float(params["radial_scale"].ravel()[0]),
-            res.reshape(n, n, 2),
+            res.reshape(rows, cols, 2),
             params["lattice"].ravel(),
         )
 
     def correction(self, xy: FloatArray) -> FloatArray:
         """Bilinear interpolation of the dot residuals at screen ``xy`` (clamped at the
         outer dots)."""
-        n = self.residual.shape[0]
+        rows, cols = self.residual.shape[:2]
         x0, y0, sx, sy = self.lattice
-        fx = np.clip((xy[:, 0] - x0) / sx, 0, n - 1)
-        fy = np.clip((xy[:, 1] - y0) / sy, 0, n - 1)
+        fx = np.clip((xy[:, 0] - x0) / sx, 0, cols - 1)
+        fy = np.clip((xy[:, 1] - y0) / sy, 0, rows - 1)
         fx = np.nan_to_num(fx)
         fy = np.nan_to_num(fy)
-        ix = np.minimum(fx.astype(np.int64), n - 2)
-        iy = np.minimum(fy.astype(np.int64), n - 2)
+        ix = np.minimum(fx.astype(np.int64), cols - 2)
+        iy = np.minimum(fy.astype(np.int64), rows - 2)
         ax, ay = (fx - ix)[:, None], (fy - iy)[:, None]
         r = self.residual
         return np.asarray(

@@ -48,8 +48,10 @@ class PointerSink(ABC):
         self.events = 0
         self.closed = False
         self.last_position: tuple[float, float] | None = None
-        # capture time (monotonic ns) of the sample being emitted, for sinks that log it
-        self.capture_ns: int | None = None
+        # the frame of the sample being emitted (its timestamp_ns and index), for sinks
+        # that log it; None outside emit() and click(sample=...)
+        self.frame_ns: int | None = None
+        self.frame_index: int | None = None
 
     # -- what subclasses provide -------------------------------------------------
     @abstractmethod
@@ -87,16 +89,23 @@ class PointerSink(ABC):
         self._set_button(button, False)
         self._flush()
 
-    def click(self, button: str = "left") -> None:
-        """Press and release."""
-        self.press(button)
-        self.release(button)
+    def click(self, button: str = "left", *, sample: PointerSample | None = None) -> None:
+        """Press and release. ``sample``: the pointer sample the click comes from (a
+        dwell click), so a sink that logs frames names its frame."""
+        if sample is not None:
+            self.frame_ns, self.frame_index = sample.timestamp_ns, sample.frame_index
+        try:
+            self.press(button)
+            self.release(button)
+        finally:
+            if sample is not None:
+                self.frame_ns = self.frame_index = None
 
     def emit(self, sample: PointerSample) -> None:
         """Move to the sample's position and make the buttons match its ``buttons``."""
         self._check_open()
         nx, ny = clamp01(sample.x), clamp01(sample.y)
-        self.capture_ns = sample.timestamp_ns
+        self.frame_ns, self.frame_index = sample.timestamp_ns, sample.frame_index
         try:
             self._move(nx, ny)
             self.last_position = (nx, ny)
@@ -107,7 +116,7 @@ class PointerSink(ABC):
                     self._set_button(b, want)
             self._flush()
         finally:
-            self.capture_ns = None
+            self.frame_ns = self.frame_index = None
 
     def release_all(self) -> None:
         """Release every button that is down; errors on one do not stop the others."""

@@ -4,14 +4,27 @@
 
 | URI | source |
 |---|---|
-| ``video:PATH`` | a video file OpenCV reads |
-| ``images:GLOB`` | still images (a glob, a folder or one file), sorted by name |
+| ``video:PATH[?rate=R&loop=1]`` | a video file (``rate``: stand in for a camera, see below) |
+| ``images:GLOB[?fps=F]`` | still images (a glob, a folder or one file), sorted by name |
 | ``v4l2:/dev/videoN?width=W&height=H&fps=F&fourcc=CCCC`` | a V4L2 capture device |
 | ``usb:VID:PID[:SERIAL]`` | the V4L2 node of a USB camera (hex vendor:product) |
 
-A bare path means ``images:`` when it is a folder, a glob or an image file, and
-``video:`` otherwise. Schemes are plugins (group ``omnidev.sources``): the
-entry point is a callable ``open(rest, options) -> Source``.
+A bare path means ``v4l2:`` when it is a device node (``/dev/videoN``),
+``images:`` when it is a folder, a glob or an image file, and ``video:`` otherwise.
+Schemes are plugins (group ``omnidev.sources``): the entry point is a callable
+``open(rest, options) -> Source``.
+
+Two kinds of source, told apart by ``Source.live``:
+
+- *recorded* (``live`` False: a video file, an image set): frames carry the
+  file's own timestamps (presentation times, from the start of the file), the
+  consumer may take its time (the pipeline waits rather than drop a frame), and
+  a missing, truncated or corrupt file raises :class:`~omnidev.errors.FileSourceError`,
+  which is final;
+- *live* (``live`` True: a camera, or a file paced with ``rate=``): frames carry
+  the monotonic time of capture, they come whether or not the consumer is ready
+  (the pipeline drops the oldest and counts it), and a camera that stops raises
+  :class:`~omnidev.errors.SourceError`, after which the daemon reopens it.
 """
 
 from __future__ import annotations
@@ -38,7 +51,7 @@ class Source(Protocol):
     name: str  # the URI it was opened from
     frame_count: int | None  # total frames when known (files), else None
     fps: float | None
-    live: bool  # a camera (no end, no total)
+    live: bool  # frames come at the source's pace, stamped on the monotonic clock
 
     def __iter__(self) -> Iterator[Frame]: ...
 
@@ -114,7 +127,14 @@ def resolve_uri(uri: str, base: Path) -> str:
 
 
 def _bare(path: str) -> str:
+    """The scheme of a bare path.
+
+    >>> _bare("/dev/video0"), _bare("talk.mp4"), _bare("shots/*.png")
+    ('v4l2', 'video', 'images')
+    """
     p = Path(path)
+    if path.startswith("/dev/video") or p.is_char_device():
+        return "v4l2"  # a camera node: live, retried when it goes away (not a missing file)
     if p.is_dir() or _glob.has_magic(path) or p.suffix.lower() in IMAGE_SUFFIXES:
         return "images"
     return "video"

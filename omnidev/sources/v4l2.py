@@ -54,7 +54,9 @@ def parse_v4l2_options(uri: str, options: dict[str, str]) -> dict[str, int | flo
         except ValueError:
             fps = 0.0
         if not 0 < fps <= 1000:
-            raise SourceError(f"{uri}: fps={options['fps']!r} must be a number in (0, 1000]")
+            raise SourceError(
+                f"{uri}: fps={options['fps']!r} must be a positive number, at most 1000"
+            )
         out["fps"] = fps
     if "fourcc" in options:
         if len(options["fourcc"]) != 4:
@@ -110,7 +112,7 @@ class V4L2Source(SourceBase):
             if not ok or image is None:
                 last = f"last good frame {index - 1}" if index else "no frame received"
                 raise SourceError(f"{self.name}: stopped delivering frames ({last})")
-            yield Frame(np.asarray(image, np.uint8), t, index)
+            yield Frame(np.asarray(image, np.uint8), t, index, t)
             index += 1
 
     def close(self) -> None:

@@ -20,7 +20,13 @@ from pathlib import Path
 from tests.fuzz.harness import GOOD, Case, ServerPool, run_cases, summary
 from tests.fuzz.mutate import NUMBER
 from tests.fuzz.seeds import make_seeds
-from tests.fuzz.targets import FILE_TARGETS, config_key_cases, file_cases, option_cases
+from tests.fuzz.targets import (
+    FILE_TARGETS,
+    config_key_cases,
+    file_cases,
+    option_cases,
+    seed_cases,
+)
 
 
 def random_cases(seeds, per_target: int, seed: int) -> list[Case]:
@@ -69,7 +75,8 @@ def main() -> int:
         os.chmod(d, 0o755)
         work = Path(d)
         seeds = make_seeds(work / "seeds")
-        cases = [*file_cases(seeds), *option_cases(seeds), *config_key_cases(seeds)]
+        plain = seed_cases(seeds)
+        cases = [*plain, *file_cases(seeds), *option_cases(seeds), *config_key_cases(seeds)]
         cases += random_cases(seeds, args.random, args.seed)
         if args.only:
             cases = [c for c in cases if args.only in c.command]
@@ -77,9 +84,16 @@ def main() -> int:
         with ServerPool(args.workers) as pool:
             outcomes = run_cases(pool, cases, work / "run")
         took = time.monotonic() - t0
+    plain_whats = {(c.command, c.what) for c in plain}
+    refused = [
+        o for o in outcomes if (o.case.command, o.case.what) in plain_whats and o.cls != "accepted"
+    ]
     bad = [o for o in outcomes if o.cls not in GOOD]
+    for o in refused:
+        print("SEED REFUSED (fuzzing this input would be vacuous): " + o.describe())
     for o in bad:
         print(o.describe())
+    bad += refused
     print(summary(outcomes))
     print(f"{len(outcomes)} cases in {took:.0f} s with {args.workers} workers; {len(bad)} bad")
     if args.json:

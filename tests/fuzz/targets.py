@@ -136,6 +136,19 @@ FILE_TARGETS: tuple[FileTarget, ...] = (
 )  # fmt: skip
 
 
+def seed_cases(seeds: Seeds, targets: tuple[FileTarget, ...] = FILE_TARGETS) -> list[Case]:
+    """Each file target's command on its unmodified seed: it must exit 0 (what "seed" means)."""
+    cases = []
+    for t in targets:
+        argv = [
+            a.replace("{f}", str(seeds[t.seed])).replace("{s}", str(seeds.root)) for a in t.argv
+        ]
+        cases.append(
+            Case(t.command, f"{t.what}: the seed as it is", argv, expect="any", timeout=t.timeout)
+        )
+    return cases
+
+
 def file_cases(seeds: Seeds) -> Iterator[Case]:
     """Every malformed variant of every file target."""
     for t in FILE_TARGETS:
@@ -424,6 +437,55 @@ OPTION_TARGETS: tuple[OptionTarget, ...] = (
     OptionTarget("sim chessboard", ("sim", "chessboard", "simout", "--pattern", "{v}"),
                  ("chessboard:0x0,30", "chessboard:9x6,nan", "chessboard:9x6,-30", "bogus",
                   "chessboard:100000x100000,30")),
+    # outputs (omnidev.outputs: file, y4m, raw, v4l2) and the threaded pipeline
+    OptionTarget("unwarp -o", ("unwarp", "{s}/omni.avi", "--camera", "{s}/cam.yml.gz", "--view",
+                               "panorama:64x16", "--frames", "2", "-o", "{v}"),
+                 ("out.mp4?crf=nan", "out.mp4?crf=-1", "out.mp4?crf=1e308",
+                  "out.mp4?preset=slowest", "out.mp4?codec=bogus",
+                  "out.avi?q=0", "out.avi?q=nan", "out.mp4?bogus=1",
+                  "out.xyz", "out", "{s}", "nodir/out.mp4", "/dev/zero", "/proc/version",
+                  "raw:-?format=bogus", "raw:out.raw?format=", "y4m:nodir/out.y4m", "y4m:{s}",
+                  "v4l2:/dev/null", "v4l2:/dev/zero", "v4l2:/dev/video99", "v4l2:",
+                  "v4l2:{s}/omni.avi", "v4l2:/dev/null?format=bogus", "bogus:thing",
+                  "file:", "file:out.mp4?crf=", "out.png"),
+                 ("out.mp4", "out.mp4?crf=30&preset=ultrafast", "out.avi?q=5", "y4m:out.y4m",
+                  "raw:out.raw?format=gray", "file:out.mkv")),
+    OptionTarget("unwarp", ("unwarp", "{s}/omni.avi", "--camera", "{s}/cam.yml.gz", "--view",
+                            "panorama:64x16", "--frames", "2", "-o", "out.avi", "--threads", "{v}"),
+                 ("0", "-1", "abc", "nan", "99999999999999999999"), ("1", "2")),
+    OptionTarget("unwarp", ("unwarp", "{s}/omni.avi", "--camera", "{s}/cam.yml.gz", "--view",
+                            "panorama:64x16", "-o", "out.avi", "--view", "panorama:64x16",
+                            "-o", "{v}"),
+                 ("out.avi", "./out.avi"), ("two.avi",)),
+    OptionTarget("unwarp", ("unwarp", "{v}", "--camera", "{s}/cam.yml.gz", "--view",
+                            "panorama:64x16", "--frames", "2", "-o", "out.avi"),
+                 ("video:{s}/omni.avi?rate=0", "video:{s}/omni.avi?rate=-1",
+                  "video:{s}/omni.avi?rate=1e308", "video:{s}/omni.avi?loop=2",
+                  "video:{s}/omni.avi?bogus=1", "images:{s}/nothing*.png", "images:",
+                  "video:{s}/landmarks.csv", "{s}/landmarks.csv", "v4l2:/dev/video99",
+                  "usb:zzzz:0001", "bogus:x"),
+                 ("video:{s}/omni.avi?rate=1000", "video:{s}/omni.avi?loop=1")),
+    # omnidev eval: task names, options, counts, reports to merge
+    OptionTarget("eval", ("eval", "{v}", "--scenes", "1"),
+                 ("nosuchtask", "", "../screen", "screen/x")),
+    OptionTarget("eval", ("eval", "screen", "--scenes", "{v}"),
+                 ("0", "-1", "abc", "nan", "99999999999999999999")),
+    OptionTarget("eval", ("eval", "screen", "--scenes", "1", "--jobs", "{v}"),
+                 ("-1", "abc", "nan", "99999999999999999999")),
+    OptionTarget("eval", ("eval", "screen", "--scenes", "1", "--opt", "{v}"),
+                 ("bogus=1", "frames_per_still=abc", "frames_per_still=-1",
+                  "frames_per_still=0", "frames_per_still=99999999999999999999",
+                  "frames_per_still=nan", "coded=maybe", "layout=bogus", "border=bogus", "nokey",
+                  "=1")),
+    OptionTarget("eval", ("eval", "screen", "--scenes", "1", "--no-progress", "-o", "{v}"),
+                 ("{s}", "nodir/r.json", "/dev/zero", "")),
+    OptionTarget("eval", ("eval", "screen", "--scene-seed", "{v}"),
+                 ("abc", "nan", "99999999999999999999999999")),
+    OptionTarget("eval", ("eval", "screen", "--scene-seed", "0", "--write", "{v}"),
+                 ("{s}/omni.png", "/dev/zero", "{s}")),
+    OptionTarget("eval", ("eval", "screen", "--merge", "{v}"),
+                 ("{s}/nothere.json", "{s}", "/dev/zero", "{s}/omni.png", "{s}/layout.json",
+                  "{s}/rec.jsonl", "")),
     OptionTarget("any", ("plugins", "--max-memory", "{v}"),
                  ("abc", "-1", "nan", "inf", "1e400G"), ("0", "4G", "512M")),
 )  # fmt: skip

@@ -23,6 +23,11 @@ log "booted"
 modprobe uinput || log "modprobe uinput failed"
 # vivid: one instance, video capture (0x1) + video output (0x100) nodes.
 modprobe vivid n_devs=1 node_types=0x101 || log "modprobe vivid failed"
+# v4l2loopback (Debian's v4l2loopback-dkms, built for this kernel by
+# scripts/install-system-deps.sh): /dev/video10 for omnidev's v4l2: output
+# (tests/vm/test_v4l2_output.py), set up as docs/outputs.md tells users.
+modprobe v4l2loopback video_nr=10 card_label="omnidev loopback" exclusive_caps=1 max_buffers=8 \
+    || log "modprobe v4l2loopback failed"
 for m in dummy_hcd libcomposite usb_f_hid usbhid hid_generic; do
     modprobe "$m" || log "modprobe $m failed"
 done
@@ -31,7 +36,8 @@ mountpoint -q /sys/kernel/config || mount -t configfs none /sys/kernel/config \
 
 log "modules loaded"
 # The project's own udev rules, as `make install` would put them (tests/vm/test_udev_rules.py).
-mkdir -p /run/udev/rules.d && cp "$REPO/udev/60-omnidev.rules" /run/udev/rules.d/
+mkdir -p /run/udev/rules.d && cp "$REPO/udev/60-omnidev.rules" \
+    "$REPO/udev/62-omnidev-v4l2loopback.rules" /run/udev/rules.d/
 # udev gives input devices their ID_INPUT_* properties (libinput needs them).
 /lib/systemd/systemd-udevd --daemon
 log "udevd started"

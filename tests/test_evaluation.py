@@ -1,0 +1,169 @@
+"""The evaluation framework (omnidev.evaluation): tasks, pooling, classes, refusals, errors, CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from omnidev.cli.main import main
+from omnidev.errors import OmnidevError
+from omnidev.evaluation.framework import (
+    SceneResult,
+    Task,
+    by_class,
+    evaluate,
+    load_task,
+    merge_reports,
+    pooled,
+    refusals,
+    run_one,
+    stats,
+    task_names,
+    typed_options,
+)
+
+
+def _fake(seed: int, options: object, outdir: Path | None) -> SceneResult:
+    if seed == 3:
+        raise ZeroDivisionError("boom")
+    r = SceneResult(seed, classes={"size": "big" if seed % 2 else "small"})
+    if seed == 4:
+        r.status, r.message = "refused", "too dark"
+        return r
+    r.metrics["err"] = float(seed)
+    r.counts["hits"] = 2
+    return r
+
+
+FAKE = Task("fake", "a test task", _fake, options={"k": 1, "on": False}, headline=("err",))
+
+
+def test_stats_and_worst_on_known_values() -> None:
+    s = stats([1.0, 2.0, 3.0, math.nan, 10.0])
+    assert s["n"] == 4 and s["median"] == 2.5 and s["max"] == 10.0
+    assert s["mean"] == 4.0 and s["p95"] == pytest.approx(8.95)
+    assert stats([])["median"] is None
+
+
+def test_evaluate_pools_refusals_errors_and_classes() -> None:
+    doc = evaluate(FAKE, scenes=6, seed=0, progress=False)
+    p = doc["pooled"]
+    assert (p["scenes"], p["ok"], p["refused"], p["errors"]) == (6, 4, 1, 1)
+    assert p["metrics"]["err"]["max"] == 5.0 and p["counts"]["hits"] == 8
+    assert [w["seed"] for w in p["worst"]["err"]][:2] == [5, 2]
+    assert doc["refusals"] == [{"message": "too dark", "count": 1, "seeds": [4]}]
+    assert (
+        doc["errors"][0]["seeds"] == [3]
+        and "ZeroDivisionError: boom" in doc["errors"][0]["message"]
+    )
+    cls = doc["classes"]["size"]
+    assert cls["big"]["scenes"] == 2 and cls["?"]["errors"] == 1  # an error has no classes
+    assert cls["small"]["refused"] == 1 and cls["small"]["metrics"]["err"]["max"] == 2.0
+    assert [r["seed"] for r in doc["per_scene"]] == list(range(6))
+
+
+def test_pooling_helpers_agree() -> None:
+    rs = [run_one(FAKE, s, {}, None) for s in range(6)]
+    assert pooled(rs)["refused"] == 1
+    assert refusals(rs, "error")[0]["count"] == 1
+    assert by_class(rs, ("err",))["size"]["big"]["metrics"]["err"]["n"] == 2
+
+
+def test_reports_of_chunks_merge_into_the_whole_run() -> None:
+    whole = evaluate(FAKE, scenes=8, seed=0, progress=False)
+    parts = [evaluate(FAKE, scenes=n, seed=s, progress=False) for s, n in ((5, 3), (0, 5))]
+    doc = merge_reports(FAKE, [("b", json.loads(json.dumps(parts[0]))), ("a", parts[1])])
+    for key in ("pooled", "refusals", "errors", "classes", "seed_range", "scenes"):
+        a, b = doc[key], whole[key]
+        if key == "pooled":
+            a, b = (dict(x, seconds_per_scene=None) for x in (a, b))
+        assert a == b, key
+    assert doc["merged_from"] == ["b", "a"]
+    with pytest.raises(OmnidevError, match="a: scene seed 0 is also in b"):
+        merge_reports(FAKE, [("b", parts[1]), ("a", parts[1])])
+    with pytest.raises(OmnidevError, match="x: task options .* differ"):
+        merge_reports(FAKE, [("b", parts[0]), ("x", dict(parts[1], options={"k": 2}))])
+    with pytest.raises(OmnidevError, match="y: not an 'omnidev eval fake' report"):
+        merge_reports(FAKE, [("y", [1, 2])])  # type: ignore[list-item]
+
+
+def test_options_are_typed_and_checked() -> None:
+    assert typed_options(FAKE, {"k": "3", "on": "yes"}) == {"k": 3, "on": True}
+    with pytest.raises(OmnidevError, match="unknown option 'x'.*options: k, on"):
+        typed_options(FAKE, {"x": "1"})
+    with pytest.raises(OmnidevError, match="option k='a' is not a int"):
+        typed_options(FAKE, {"k": "a"})
+
+
+def test_tasks_are_found_by_module_name() -> None:
+    assert "screen" in task_names()
+    assert load_task("screen").name == "screen"
+    with pytest.raises(OmnidevError, match="unknown evaluation task 'nope'; known: .*screen"):
+        load_task("nope")
+
+
+def test_cli_lists_tasks_and_rejects_bad_options(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["eval", "--list"]) == 0
+    assert "screen:" in capsys.readouterr().out
+    assert main(["eval", "screen", "--opt", "nope=1", "--scenes", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown option 'nope'" in err and len(err.strip().splitlines()) == 1
+    assert main(["eval", "screen", "--write", "x"]) == 2
+    assert "--write needs --scene-seed" in capsys.readouterr().err
+
+
+def test_cli_json_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "r.json"
+    rc = main(["eval", "screen", "--scenes", "1", "--seed", "1003", "--json", "-o", str(out)])
+    text = capsys.readouterr().out
+    doc = json.loads(text)
+    assert rc == 0 and json.loads(out.read_text()) == doc
+    assert doc["seed_range"] == [1003, 1003] and len(doc["per_scene"]) == 1
+    assert doc["summary"]["acceptance"][0]["bound"] == "<= 0.01"
+    # a saved report merges (here with nothing else) into the same figures
+    assert main(["eval", "screen", "--merge", str(out), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["pooled"]["metrics"] == doc["pooled"]["metrics"]
+    assert again["summary"] == doc["summary"]
+    assert main(["eval", "screen", "--merge", str(out), str(out)]) == 2
+    assert "is also in" in capsys.readouterr().err
+    assert main(["eval", "screen", "--merge", str(tmp_path / "none.json")]) == 2
+    assert "none.json: no such report" in capsys.readouterr().err
+
+
+def test_cli_replays_one_scene_and_writes_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "scene"
+    rc = main(
+        ["eval", "screen", "--scene-seed", "1003", "--write", str(out), "--opt", "coded=false"]
+    )
+    text = capsys.readouterr().out
+    assert rc == 0 and "scene 1003: ok" in text and "radial.rms" in text
+    for name in ("white.png", "black.png", "dots.png"):
+        assert (out / name).is_file()
+    truth = json.loads((out / "truth.json").read_text())
+    assert len(truth["image_points"]) == len(truth["screen_points"]) > 1000
+    # the written truth file is one `calibrate screen --truth` takes
+    rc = main(
+        [
+            "calibrate",
+            "screen",
+            "--white",
+            str(out / "white.png"),
+            "--black",
+            str(out / "black.png"),
+            "--dots",
+            str(out / "dots.png"),
+            "--layout",
+            str(out / "layout.json"),
+            "-o",
+            str(tmp_path / "c.yml"),
+            "--truth",
+            str(out / "truth.json"),
+        ]
+    )
+    assert rc == 0 and "truth points:" in capsys.readouterr().out

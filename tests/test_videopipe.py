@@ -1,0 +1,88 @@
+"""omnidev.videopipe: order, count, limits and failures of the threaded pipeline."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from omnidev.errors import OutputError, SourceError
+from omnidev.frame import Frame
+from omnidev.outputs import OutputBase
+from omnidev.videopipe import run
+
+
+class Collect(OutputBase):
+    """An output that keeps what it gets (optionally slowly, optionally failing at a frame)."""
+
+    def __init__(self, name: str, delay_s: float = 0.0, fail_at: int | None = None) -> None:
+        self.name = name
+        self.layout = "bgr"
+        self.frames = 0
+        self.got: list[tuple[int, int, int]] = []
+        self.delay_s = delay_s
+        self.fail_at = fail_at
+        self.thread: str | None = None
+
+    def write(self, frame: Frame) -> None:
+        if self.fail_at is not None and frame.index == self.fail_at:
+            raise OutputError(f"{self.name}: disk full at frame {frame.index}")
+        time.sleep(self.delay_s)
+        self.thread = threading.current_thread().name
+        self.got.append((frame.index, frame.timestamp_ns, int(frame.image[0, 0, 0])))
+        self.frames += 1
+
+
+def frames(n: int, fail_at: int | None = None):
+    for i in range(n):
+        if i == fail_at:
+            raise SourceError(f"src: frame {i} is corrupt")
+        yield Frame(np.full((4, 6, 3), i % 256, np.uint8), 1000 + i, i)
+
+
+def plus(k: int):
+    return lambda img: (img.astype(np.int64) + k).clip(0, 255).astype(np.uint8)
+
+
+def test_every_frame_once_in_order_per_output_with_its_own_view():
+    slow, fast = Collect("slow", delay_s=0.002), Collect("fast")
+    stats = run(frames(200), "bgr", [plus(1), plus(2)], [slow, fast], depth=3)
+    assert stats.frames == 200
+    assert slow.got == [(i, 1000 + i, (i % 256) + 1) for i in range(200)]
+    assert fast.got == [(i, 1000 + i, min((i % 256) + 2, 255)) for i in range(200)]
+    assert slow.thread == "write:slow" and fast.thread == "write:fast"
+    assert set(stats.stages) == {"read", "remap", "write:slow", "write:fast"}
+    assert stats.stages["write:slow"].busy_s >= 200 * 0.002 * 0.9
+
+
+def test_limit_stops_reading():
+    out = Collect("o")
+    assert run(frames(50), "bgr", [plus(0)], [out], limit=7).frames == 7
+    assert [g[0] for g in out.got] == list(range(7))
+
+
+def test_a_failing_output_stops_everything_and_its_error_is_raised():
+    bad, good = Collect("bad", fail_at=13), Collect("good", delay_s=0.001)
+    with pytest.raises(OutputError, match="disk full at frame 13"):
+        run(frames(10_000), "bgr", [plus(0), plus(0)], [bad, good])
+    assert len(bad.got) == 13
+    assert len(good.got) < 10_000  # it stopped early
+
+
+def test_a_source_error_is_raised():
+    out = Collect("o")
+    with pytest.raises(SourceError, match="frame 5 is corrupt"):
+        run(frames(20, fail_at=5), "bgr", [plus(0)], [out])
+    # the outputs are aborted after an error: what reached them is an in-order prefix
+    assert [g[0] for g in out.got] == list(range(len(out.got))) and len(out.got) <= 5
+
+
+def test_check_rejects_a_frame():
+    def check(frame: Frame) -> None:
+        if frame.index == 3:
+            raise SourceError("src frame 3 is 5x4; the calibration is for 6x4")
+
+    with pytest.raises(SourceError, match="frame 3 is 5x4"):
+        run(frames(10), "bgr", [plus(0)], [Collect("o")], check=check)
