@@ -5,10 +5,10 @@ pano-mapping table, a decoded image or video frame) is estimated here first,
 and refused with the estimate when it would take the process past its limit:
 a typo such as ``panorama:32768x32768`` is a one-line error, not 66 GiB.
 
-The limit is the peak resident memory a command may reach, in bytes: 1 GiB
-unless ``--max-memory SIZE`` (every command has it) or the environment
-variable ``OMNIDEV_MAX_MEMORY`` says otherwise (``512M``, ``4G``, ``0`` for no
-limit).
+The limit is the peak resident memory a command may reach, in bytes: half of
+the machine's physical memory (at least :data:`MIN_DEFAULT`) unless
+``--max-memory SIZE`` (every command has it) or the environment variable
+``OMNIDEV_MAX_MEMORY`` says otherwise (``512M``, ``4G``, ``0`` for no limit).
 
 >>> parse_memory("1.5G")
 1610612736
@@ -23,7 +23,8 @@ import resource
 
 from omnidev.errors import OmnidevError
 
-DEFAULT_MAX_MEMORY = 1 << 30
+MIN_DEFAULT = 1 << 30
+"""The default limit on a machine whose memory cannot be read, bytes."""
 ENV = "OMNIDEV_MAX_MEMORY"
 _UNITS = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 
@@ -89,7 +90,16 @@ def max_memory() -> int:
     env = os.environ.get(ENV)
     if env:
         return parse_memory(env)
-    return DEFAULT_MAX_MEMORY
+    return default_max_memory()
+
+
+def default_max_memory() -> int:
+    """Half the physical memory, bytes (:data:`MIN_DEFAULT` when it cannot be read)."""
+    try:
+        total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return MIN_DEFAULT
+    return max(MIN_DEFAULT, total // 2)
 
 
 def resident_bytes() -> int:

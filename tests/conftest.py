@@ -46,8 +46,11 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
     """The fuzz suite's counts by command (tests/fuzz), when it ran."""
     import sys
 
-    mod = sys.modules.get("tests.fuzz.test_fuzz")
-    text = mod.pytest_terminal_summary_text() if mod is not None else ""
+    text = ""
+    for name in ("tests.fuzz.test_fuzz", "fuzz.test_fuzz"):  # as pytest named it
+        mod = sys.modules.get(name)
+        if mod is not None:
+            text = text or mod.pytest_terminal_summary_text()
     if text:
         terminalreporter.section("fuzz suite: outcomes by command")
         terminalreporter.write_line(text)

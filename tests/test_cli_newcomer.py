@@ -64,7 +64,7 @@ def test_every_command_has_max_memory_and_refuses_a_huge_view(tmp_path, capsys):
     cam = tmp_path / "fish.yml"
     assert main(["calibrate", "import", str(kalibr), "-o", str(cam)]) == 0
     argv = ["unwarp", str(img), "--camera", str(cam), "--view", "perspective:20000x20000",
-            "-o", str(tmp_path / "v.png")]  # fmt: skip
+            "-o", str(tmp_path / "v.png"), "--max-memory", "1G"]  # fmt: skip
     capsys.readouterr()
     assert main(argv) == 2
     err = capsys.readouterr().err

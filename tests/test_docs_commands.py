@@ -8,7 +8,8 @@ Every logical line of a ```sh block in README.md and docs/*.md is one of:
 - a ``cat > FILE <<'EOF'`` here-document writing a file there, or a
   ``python - <<'EOF'`` one (run too);
 - a setup line of :data:`SETUP` (CI runs ``make test``, which runs those);
-- a line marked ``# needs a camera`` / ``# needs root`` / ... (:data:`MARK`), or
+- a line marked ``# needs a camera`` / ``# needs root`` / ``# takes minutes`` (a full
+  evaluation; the test suite runs a small sample of those) ... (:data:`MARK`), or
   in a block whose first line is such a comment: listed, not run;
 - a comment.
 
@@ -30,7 +31,8 @@ REPO = Path(__file__).resolve().parents[1]
 CHECKED = ("README.md", *sorted(f"docs/{p.name}" for p in (REPO / "docs").glob("*.md")))
 SETUP = ("make demo", "make test", "make setup", ". .venv/bin/activate")
 MARK = re.compile(
-    r"#\s*needs (a camera|root|a display|the system install|a USB gadget|the \S+ plugin)"
+    r"#\s*(needs (a camera|root|a display|the system install|a USB gadget|the \S+ plugin)"
+    r"|takes minutes)"
 )
 """Why a line is not run: the hardware, privileges or installed files it needs."""
 HEREDOC = re.compile(r"^(?:cat > (\S+)|python3? -) <<'?(\w+)'?\s*$")

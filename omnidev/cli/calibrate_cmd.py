@@ -176,7 +176,11 @@ def run(args: argparse.Namespace) -> int:
         table_size = parse_size(args.table_size, "--table-size", minimum=2, maximum=32768)
     tw, th = table_size or size
     check_pixels(tw, th, TABLE_BYTES_PER_ENTRY, f"a {tw}x{th} pano-mapping table")
-    bound = args.max_residual if args.max_residual and args.max_residual > 0 else None
+    if not (math.isfinite(args.max_residual) and args.max_residual >= 0):
+        raise CalibrationError(
+            f"--max-residual {args.max_residual:g}: give pixels >= 0 (0 = never refuse)"
+        )
+    bound = args.max_residual if args.max_residual > 0 else None
     print(f"{len(lm.rows)} landmarks from {args.landmarks}")
     calib: Calibration | GeneralCalibration
     if args.model == "general":
@@ -439,7 +443,7 @@ def run_screen(args: argparse.Namespace) -> int:
     )
 
     size = parse_size(args.screen, "--screen", maximum=16384) if args.screen else None
-    method = args.method or DEFAULT_METHOD
+    method = DEFAULT_METHOD if args.method is None else args.method
     if method not in METHODS:
         raise CalibrationError(f"--method {method!r}: choose from {', '.join(METHODS)}")
     if not 2 <= args.n <= 64:

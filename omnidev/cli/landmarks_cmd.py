@@ -46,6 +46,8 @@ def run_board(args: argparse.Namespace) -> int:
             raise CalibrationError(f"{bd.name}: its image {bd.image!r} is not among the inputs")
     lines = ["u,v,X,Y,Z,group"]
     group = 0
+    if args.min_corners < 1:
+        raise CalibrationError(f"--min-corners {args.min_corners}: give 1 or more")
     total = 0
     size: tuple[int, int] | None = None
     for path in tqdm(args.images, desc="images", unit="image", file=sys.stderr):

@@ -120,8 +120,8 @@ def run(args: argparse.Namespace) -> int:
         )
     if (args.camera is None) == (args.rig is None):
         raise OmnidevError("give exactly one of --camera FILE or --rig RIG.toml")
-    if args.threads < 1:
-        raise OmnidevError(f"--threads {args.threads}: give 1 or more")
+    if not 1 <= args.threads <= 256:
+        raise OmnidevError(f"--threads {args.threads}: give 1 .. 256")
     if args.frames is not None and args.frames < 1:
         raise OmnidevError(f"--frames {args.frames}: give 1 or more")
     if args.fps is not None and not 0 < args.fps <= MAX_FPS:

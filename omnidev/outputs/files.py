@@ -127,8 +127,8 @@ class FileOutput(OutputBase):
         w, h = self.spec.size
         codec = self._settings["codec"]
         pix_fmt = "yuvj420p" if self.layout == "yuvj420p" or codec == "mjpeg" else "yuv420p"
-        if codec == "ffv1":
-            pix_fmt = "yuv420p" if self.layout != "yuvj420p" else "yuvj420p"
+        if codec == "ffv1":  # FFmpeg's ffv1 takes no yuvj420p: full range is converted
+            pix_fmt = "yuv420p"
         try:
             self._container = av.open(
                 str(self.tmp), mode="w", format=VIDEO_CONTAINERS[self.path.suffix.lower()]

@@ -31,6 +31,10 @@ class Landmarks:
     groups: NDArray[np.intp] | None = None
 
 
+MAX_VALUE = 1e9
+"""Largest |value| of a landmark coordinate (pixels or world units)."""
+
+
 def read_landmarks_csv(path: Path) -> Landmarks:
     """Read a landmark CSV; every error names the file and the line (and column)."""
     path = Path(path)
@@ -73,6 +77,10 @@ def read_landmarks_csv(path: Path) -> Landmarks:
                 ) from None
             if not math.isfinite(x):
                 raise CalibrationError(f"{path} line {lineno}: column {col} is not finite ({raw})")
+            if abs(x) > MAX_VALUE:
+                raise CalibrationError(
+                    f"{path} line {lineno}: column {col} is {raw}; |value| must be <= {MAX_VALUE:g}"
+                )
             row.append(x)
         if gi is not None:
             raw = fields[gi].strip()

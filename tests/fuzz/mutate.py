@@ -129,12 +129,18 @@ KEY_VALUES: tuple[tuple[str, bytes, Expect], ...] = (
 """What every number key of a calibration file is set to (NaN must be refused)."""
 
 
+INFORMATIONAL_KEYS = ("radial_rms_px", "reprojection_rms_px", "heldout_rms_px", "n")
+"""Keys a loader does not read (fit figures for people; ``n`` of a format-2 screen file):
+any value may be accepted there, as long as nothing crashes."""
+
+
 def key_variants(seed: bytes, skip: tuple[str, ...] = ("rows", "cols")) -> Iterator[Variant]:
     """The seed with each ``key: number`` value replaced by each of :data:`KEY_VALUES`."""
     for m in KEY_LINE.finditer(seed):
         key = m.group(2).decode()
         if key in skip:
             continue
-        for name, value, expect in KEY_VALUES:
+        for name, value, expect_ in KEY_VALUES:
+            expect: Expect = "any" if key in INFORMATIONAL_KEYS else expect_
             blob = seed[: m.start(4)] + value + seed[m.end(4) :]
             yield Variant(f"key {key} -> {name}", blob, expect)
