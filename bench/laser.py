@@ -8,6 +8,12 @@ slides, frames without a spot included). Figures:
 - detect_reference_ms_per_frame: the same with step=1 (every pixel a candidate
   pixel, the straightforward reference path); detect_speedup: reference / fast.
 - slide_change_ms: detect on the frames judged a slide change (median).
+- colour_detect_ms_per_frame: ColourSpotDetector.detect (the default method, no
+  white core needed), median over the same frames (the first of each pass
+  excluded); target <= 2 ms.
+- anchor_minmaxloc_ms: what a user would write instead, the brightest pixel of the
+  laser channel (cv2.extractChannel + cv2.minMaxLoc, no background, no tests);
+  colour_vs_anchor: colour_detect_ms_per_frame / anchor_minmaxloc_ms.
 - calibrate_ms: calibrate_screen on the rendered white, black and 9 x 9 dot images
   (median of the runs).
 """
@@ -20,6 +26,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from omnidev.laser.colour_spot import ColourSpotDetector
 from omnidev.laser.spot import SpotDetector
 from omnidev.screencal.calibration import calibrate_screen
 from omnidev.screencal.patterns import black_pattern, dot_pattern, white_pattern
@@ -58,7 +65,22 @@ def run(quick: bool = False) -> dict[str, Any]:
                         timing["change"].append(ms)
                 else:
                     timing[name].append(ms)
+    colour_ms: list[float] = []
+    anchor_ms: list[float] = []
+    for _ in range(1 if quick else 3):
+        cdet = ColourSpotDetector("red", mask)
+        for i, img in enumerate(frames):
+            t0 = time.perf_counter_ns()
+            cdet.detect(img)
+            ms = (time.perf_counter_ns() - t0) / 1e6
+            t1 = time.perf_counter_ns()
+            cv2.minMaxLoc(cv2.extractChannel(img, 2))
+            anchor = (time.perf_counter_ns() - t1) / 1e6
+            if i:
+                colour_ms.append(ms)
+                anchor_ms.append(anchor)
     fast, ref = float(np.median(timing["fast"])), float(np.median(timing["reference"]))
+    col, anc = float(np.median(colour_ms)), float(np.median(anchor_ms))
     return {
         "frame": "1280x720 BGR (omnidev.sim.screen.laser_video, k1 -0.25, red)",
         "threads": 1,
@@ -68,6 +90,10 @@ def run(quick: bool = False) -> dict[str, Any]:
         "slide_change_ms": round(float(np.median(timing["change"])), 3)
         if timing["change"]
         else None,
+        "colour_detect_ms_per_frame": round(col, 3),
+        "anchor_minmaxloc_ms": round(anc, 3),
+        "colour_vs_anchor": round(col / anc, 1),
+        "colour_detect_p95_ms": round(float(np.percentile(colour_ms, 95)), 3),
         "calibrate_ms": round(float(np.median(cal_ms)), 1),
         "calibration_method": cal.method,
         "dots_used": cal.dots_used,

@@ -29,17 +29,24 @@ class OneEuroFilter:
         min_cutoff: Hz, the cutoff when the signal is still (lower: steadier).
         beta: s/unit, how much the cutoff rises with speed (higher: less lag).
         d_cutoff: Hz, the cutoff of the speed estimate itself.
+        max_gap_s: s; a value observed longer than this after the previous one starts
+            the filter afresh (positions many frames apart are not blended, e.g. a
+            laser spot found again elsewhere). None: never (the original filter).
     """
 
     min_cutoff: float = 1.0
     beta: float = 0.007
     d_cutoff: float = 1.0
+    max_gap_s: float | None = None
 
     def __post_init__(self) -> None:
         for key in ("min_cutoff", "beta", "d_cutoff"):
             value = getattr(self, key)
             if not math.isfinite(value) or value < 0 or (key != "beta" and value == 0):
                 raise ValueError(f"one-euro {key} must be a positive number, got {value}")
+        gap = self.max_gap_s
+        if gap is not None and (not math.isfinite(gap) or gap <= 0):
+            raise ValueError(f"one-euro max_gap_s must be a positive number of seconds, got {gap}")
         self.reset()
 
     def reset(self) -> None:
@@ -55,6 +62,9 @@ class OneEuroFilter:
             self._t, self._x, self._dx = t, value.copy(), np.zeros_like(value)
             return value.copy()
         dt = t - self._t
+        if self.max_gap_s is not None and dt > self.max_gap_s:
+            self._t, self._x, self._dx = t, value.copy(), np.zeros_like(value)
+            return value.copy()
         if dt <= 0:  # same or older timestamp: nothing new to learn from
             return self._x.copy()
         a_d = smoothing_factor(dt, self.d_cutoff)

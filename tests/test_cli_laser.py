@@ -77,3 +77,13 @@ def test_laser_over_the_fixture_videos_together(chains):
 def test_laser_cli_errors(tmp_path, capsys):
     assert main(["laser", "x.avi", "--calibration", str(tmp_path / "none.yml")]) == 2
     assert "screen calibration file not found" in capsys.readouterr().err
+
+
+def test_laser_cli_detector_options(tmp_path, capsys):
+    cal = tmp_path / "screen.yml"
+    cal.write_text("%YAML:1.0\n")
+    assert main(["laser", "x.avi", "--calibration", str(cal), "--detector-option", "bogus"]) == 2
+    assert "--detector-option 'bogus': expected KEY=VALUE" in capsys.readouterr().err
+    argv = ["laser", "x.avi", "--calibration", str(cal), "--detector-option", "method=colour"]
+    assert main(argv) == 2
+    assert "use --method" in capsys.readouterr().err

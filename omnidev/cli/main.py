@@ -39,6 +39,7 @@ SUBCOMMANDS = (
     "laser_cmd",
     "nonsvp_cmd",
     "eval_cmd",
+    "batch_cmd",
 )
 
 _NEGATIVE_VALUE = re.compile(r"^-\.?\d")

@@ -506,4 +506,4 @@ class Pipeline:
         f = config.filter
         if f.kind == "none":
             return None
-        return OneEuroFilter(f.min_cutoff, f.beta, f.d_cutoff)
+        return OneEuroFilter(f.min_cutoff, f.beta, f.d_cutoff, max_gap_s=f.max_gap_s or None)

@@ -77,6 +77,7 @@ Example:
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field, replace
@@ -1172,6 +1173,8 @@ class SceneRenderer:
         per = math.sqrt(SW * SH / max(area * n * n, 1.0))
         self.mip = max(0, math.floor(math.log2(max(per, 1.0))))
         self._ca_maps = self._chromatic_maps()
+        # the last content's screen light: slides hold still for many frames
+        self._screen_cache: tuple[bytes, F32, float] | None = None
 
     def _light_fields(self, plane: FloatArray) -> None:
         """Room light, spill, display gain and glare at the pixels (``plane``: each
@@ -1272,14 +1275,33 @@ class SceneRenderer:
         """Linear radiance reaching the sensor (H, W, 3), display-white units, before optics."""
         sc = self.scene
         SW, SH = sc.screen_px
-        _W, _H = sc.size
-        n = sc.supersample
         c = np.asarray(content)
         if c.shape[:2] != (SH, SW) or c.dtype != np.uint8:
             raise ValueError(
                 f"screen content {c.shape} {c.dtype}: expected uint8 {SH}x{SW} (grey) "
                 f"or {SH}x{SW}x3"
             )
+        key = hashlib.blake2b(np.ascontiguousarray(c).data, digest_size=16).digest() + bytes(
+            str(c.shape), "ascii"
+        )
+        if self._screen_cache is not None and self._screen_cache[0] == key:
+            screen, mean_lum = self._screen_cache[1], self._screen_cache[2]
+        else:
+            screen, mean_lum = self._screen_light(c)
+            self._screen_cache = (key, screen, mean_lum)
+        rowf, winf = self.light_factor(t)
+        illum = self.ambient * rowf[:, None, None] + (self.spill * mean_lum)[..., None]
+        L = screen * self.display_gain[..., None] + self.refl * illum
+        L += self.emit_w * np.float32(winf) + self.emit_s + self.glare[..., None]
+        L += (self.occ_alpha * self.occ_light * rowf[:, None])[..., None]
+        if extra_light is not None or extra_light_t is not None:
+            self._add_extra(L, t, extra_light, extra_light_t, extra_light_bbox, motion_samples)
+        return np.asarray(L, np.float32)
+
+    def _screen_light(self, c: U8) -> tuple[F32, float]:
+        """The display's light (H, W, 3) at the pixels for screen content ``c`` (before
+        the display gain), and the content's mean linear green (for the spill light)."""
+        n = self.scene.supersample
         if c.ndim == 2:
             c = np.repeat(c[..., None], 3, axis=2)
         lin = np.asarray(cv2.LUT(np.ascontiguousarray(c), self.lut.reshape(256, 1, 3)), np.float32)
@@ -1304,14 +1326,7 @@ class SceneRenderer:
         )
         del mx, my
         screen = _box(ss, n)
-        rowf, winf = self.light_factor(t)
-        illum = self.ambient * rowf[:, None, None] + (self.spill * mean_lum)[..., None]
-        L = screen * self.display_gain[..., None] + self.refl * illum
-        L += self.emit_w * np.float32(winf) + self.emit_s + self.glare[..., None]
-        L += (self.occ_alpha * self.occ_light * rowf[:, None])[..., None]
-        if extra_light is not None or extra_light_t is not None:
-            self._add_extra(L, t, extra_light, extra_light_t, extra_light_bbox, motion_samples)
-        return np.asarray(L, np.float32)
+        return screen, mean_lum
 
     def _window(self, bbox: tuple[float, float, float, float] | None) -> tuple[int, int, int, int]:
         sc = self.scene

@@ -13,11 +13,13 @@ Calibration file: a screen calibration saved by ``omnidev calibrate screen``
 frames must have its image size. Spots are looked for inside its screen region
 grown by 3 px (a spot at the very edge of the screen keeps its core).
 
-Options (all optional): ``colour`` ("red", default, "green" or "any"), and the
-detector's limits, see :class:`~omnidev.laser.spot.SpotDetector`: ``step``,
-``rise``, ``core``, ``colour_ratio``, ``min_area``, ``max_area``,
-``max_elongation``, ``min_fill``, ``change_fraction``, ``bands``, ``saturated``,
-``halo``.
+Options (all optional): ``colour`` ("red", default, "green" or "any"),
+``method`` ("white-core", default: :class:`~omnidev.laser.spot.SpotDetector`, which
+needs the spot's brightest pixel white; "colour":
+:class:`~omnidev.laser.colour_spot.ColourSpotDetector`, no white core needed, better
+on the randomized scenes of ``omnidev eval laser`` but not yet on the committed
+fixtures, see docs/laser-pointer.md), and the chosen
+detector's limits (:data:`METHOD_OPTIONS` lists them; see the detectors' docs).
 """
 
 from __future__ import annotations
@@ -31,19 +33,35 @@ import numpy as np
 
 from omnidev import Frame, PointerSample
 from omnidev.errors import OmnidevError, TrackerError
+from omnidev.laser.colour_spot import ColourSpotDetector
 from omnidev.laser.spot import COLOURS, SpotDetector
 from omnidev.screencal.calibration import ScreenCalibration, load_screen_calibration
 
-INT_OPTIONS = ("step", "rise", "core", "saturated", "min_area", "max_area", "bands")
-FLOAT_OPTIONS = ("colour_ratio", "halo", "max_elongation", "min_fill", "change_fraction")
-OPTIONS = ("colour", *INT_OPTIONS, *FLOAT_OPTIONS)
+METHODS = ("colour", "white-core")
+# each method's options: name -> type
+METHOD_OPTIONS: dict[str, dict[str, type]] = {
+    "colour": {
+        "step": int, "saturated": int, "soft": int, "rise": int, "min_area": int,
+        "max_area": int, "busy_frames": int, "bands": int, "halo": float,
+        "colour_ratio": float, "min_new": float, "max_elongation": float, "min_fill": float,
+        "change_fraction": float, "track_px": float, "busy_gain": float, "fringe": float,
+        "max_darker": float, "min_cross": float, "busy_events": int, "position": str,
+    },
+    "white-core": {
+        "step": int, "rise": int, "core": int, "saturated": int, "min_area": int,
+        "max_area": int, "bands": int, "colour_ratio": float, "halo": float,
+        "max_elongation": float, "min_fill": float, "change_fraction": float,
+    },
+}  # fmt: skip
 MASK_GROW_PX = 3  # candidates also this far outside the calibrated screen border
 
 
 class LaserPointer:
     """Spot detection in the calibrated screen region, then image -> screen."""
 
-    def __init__(self, calibration: ScreenCalibration, detector: SpotDetector) -> None:
+    def __init__(
+        self, calibration: ScreenCalibration, detector: SpotDetector | ColourSpotDetector
+    ) -> None:
         self.calibration = calibration
         self.detector = detector
         self.image_size = (int(calibration.image_size[0]), int(calibration.image_size[1]))
@@ -86,10 +104,20 @@ def _number(options: Mapping[str, Any], key: str, kind: type) -> Any:
 
 def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> LaserPointer:
     """Entry point: the calibration is a screen calibration file; options as documented."""
-    unknown = set(options) - set(OPTIONS)
-    if unknown:
+    method = str(options.get("method", "white-core"))
+    if method not in METHODS:
         raise TrackerError(
-            f"laser-pointer: unknown option {sorted(unknown)[0]!r} (options: {', '.join(OPTIONS)})"
+            f"laser-pointer: method must be one of {', '.join(METHODS)}, got {method!r}"
+        )
+    kinds = METHOD_OPTIONS[method]
+    known = ("colour", "method", *kinds)
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        other = [m for m in METHODS if m != method and unknown[0] in METHOD_OPTIONS[m]]
+        hint = f"; it is an option of method {other[0]!r}" if other else ""
+        raise TrackerError(
+            f"laser-pointer: unknown option {unknown[0]!r} for method {method!r}{hint} "
+            f"(options: {', '.join(known)})"
         )
     colour = str(options.get("colour", "red"))
     if colour not in COLOURS:
@@ -97,12 +125,14 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> LaserP
             f"laser-pointer: colour must be one of {', '.join(COLOURS)}, got {colour!r}"
         )
     kwargs: dict[str, Any] = {}
-    for key in INT_OPTIONS:
+    for key, kind in kinds.items():
         if key in options:
-            kwargs[key] = _number(options, key, int)
-    for key in FLOAT_OPTIONS:
-        if key in options:
-            kwargs[key] = _number(options, key, float)
+            if isinstance(options[key], bool) or (
+                kind is int and isinstance(options[key], float) and not options[key].is_integer()
+            ):
+                what = "a whole number" if kind is int else "a number"
+                raise TrackerError(f"laser-pointer: {key} must be {what}, got {options[key]!r}")
+            kwargs[key] = _number(options, key, kind)
     if calibration is None:
         raise TrackerError(
             "laser-pointer: needs a screen calibration as its calibration file "
@@ -119,7 +149,11 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> LaserP
         np.asarray(cal.screen_mask(), np.uint8), np.ones((2 * MASK_GROW_PX + 1,) * 2, np.uint8)
     ).astype(bool)
     try:
-        detector = SpotDetector(colour, mask, **kwargs)
+        detector: SpotDetector | ColourSpotDetector
+        if method == "colour":
+            detector = ColourSpotDetector(colour, mask, **kwargs)
+        else:
+            detector = SpotDetector(colour, mask, **kwargs)
     except ValueError as exc:
         raise TrackerError(f"laser-pointer: {exc}") from None
     return LaserPointer(cal, detector)

@@ -1,0 +1,132 @@
+"""The colour laser detector (omnidev.laser.colour_spot), the laser eval task on a small
+sample of randomized scenes (seeds 700004, 700018, 700024, 700037: test seeds, neither
+the tuning range 1000-1019 nor the reported range 500000+), the laser's filter default
+and the tracker's options.
+
+The sample's figures are regression bounds at the measured values (``pytest -s``
+prints them); issue 12's acceptance (>= 99 % of spot frames) is NOT met by either
+detector on these scenes: docs/laser-pointer.md gives the evaluation's figures.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from omnidev.daemon.config import parse_config
+from omnidev.errors import TrackerError
+from omnidev.evaluation.framework import load_task
+from omnidev.filters import OneEuroFilter
+from omnidev.laser.colour_spot import ColourSpotDetector
+from omnidev.sim.screen import Spot, render, screen_rig
+from omnidev.sim.screen_content import slide
+from omnidev.tracking import open_tracker
+
+SAMPLE = (700004, 700018, 700024, 700037)
+
+
+@pytest.fixture(scope="module")
+def sample() -> dict[int, dict[str, int]]:
+    task = load_task("laser")
+    opts = dict(task.options, frames=30)
+    out = {}
+    for seed in SAMPLE:
+        res = task.run_scene(seed, opts, None)
+        assert res.status == "ok"
+        out[seed] = dict(res.counts)
+        print(f"\nscene {seed} {res.classes}: {res.counts}")
+    return out
+
+
+def test_sample_colour_beats_white_core(sample: dict[int, dict[str, int]]) -> None:
+    hit = sum(c["hit"] for c in sample.values())
+    spot = sum(c["spot"] for c in sample.values())
+    ohit = sum(c["other.hit"] for c in sample.values())
+    assert spot == sum(c["other.spot"] for c in sample.values()) > 40
+    print(f"\ncolour {hit}/{spot}, white-core {ohit}/{spot} spot frames within tolerance")
+    assert hit >= ohit + 0.2 * spot  # the colour detector finds what needs no white core
+    assert hit >= 0.55 * spot  # measured 39 / 67 (58 %)
+
+
+def test_sample_false_spots(sample: dict[int, dict[str, int]]) -> None:
+    off = sum(c["off"] for c in sample.values())
+    false = sum(c["false"] for c in sample.values())
+    assert off >= 4 * 8  # the lead-in at least
+    assert false == 0
+
+
+def _dark_rig_frames(n: int, *, spot: bool) -> list[np.ndarray]:
+    rig = screen_rig((640, 480), 0.1)
+    content = slide("dark", 1920, 1080, 0.0)
+    frames = [render(rig, content, frame_seed=0)]
+    for i in range(n):
+        s = Spot(600.0 + 9 * i, 500.0, "red", 6.0, 1.0) if spot else None
+        frames.append(render(rig, content, spot=s, frame_seed=i + 1))
+    return frames
+
+
+def test_first_frame_only_starts_the_model() -> None:
+    """No spot is reported on the first frame (nothing to compare with), one is from
+    the next frame on when it moves."""
+    det = ColourSpotDetector("red")
+    frames = _dark_rig_frames(6, spot=True)
+    assert det.detect(frames[0]) is None
+    found = [det.detect(f) for f in frames[1:]]
+    assert all(s is not None for s in found)
+
+
+def test_static_content_never_fires() -> None:
+    det = ColourSpotDetector("any")
+    assert all(det.detect(f) is None for f in _dark_rig_frames(10, spot=False))
+
+
+def test_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="colour must be one of"):
+        ColourSpotDetector("blue")
+    with pytest.raises(ValueError, match="min_area"):
+        ColourSpotDetector("red", min_area=5, max_area=2)
+    det = ColourSpotDetector("red", np.ones((10, 10), bool))
+    with pytest.raises(ValueError, match="mask is 10x10, image 20x10"):
+        det.detect(np.zeros((10, 20, 3), np.uint8))
+
+
+def test_one_euro_max_gap_restarts() -> None:
+    f = OneEuroFilter(0.1, 20.0, 2.0, max_gap_s=0.1)
+    f(0.0, [0.0, 0.0])
+    f(1 / 30, [0.0, 0.0])
+    out = f(0.5, [0.5, 0.5])  # found again elsewhere after 0.47 s: not blended
+    assert np.allclose(out, [0.5, 0.5])
+    old = OneEuroFilter(0.1, 20.0, 2.0)  # without max_gap_s: the original filter
+    old(0.0, [0.0, 0.0])
+    old(1 / 30, [0.0, 0.0])
+    assert old(0.5, [0.5, 0.5])[0] < 0.5
+    with pytest.raises(ValueError, match="max_gap_s"):
+        OneEuroFilter(max_gap_s=0.0)
+
+
+def test_laser_filter_defaults(tmp_path: Path) -> None:
+    doc = {"source": {"uri": "x"}, "tracker": {"name": "laser-pointer"}, "sink": {"name": "r"}}
+    cfg = parse_config(doc, tmp_path / "c.toml")
+    assert (cfg.filter.min_cutoff, cfg.filter.max_gap_s) == (1.5, 0.1)
+    doc["tracker"] = {"name": "camera-mouse"}
+    cfg = parse_config(doc, tmp_path / "c.toml")
+    assert (cfg.filter.min_cutoff, cfg.filter.max_gap_s) == (0.1, 0.0)
+    doc["tracker"] = {"name": "laser-pointer"}
+    doc["filter"] = {"max_gap_s": 0.25}
+    assert parse_config(doc, tmp_path / "c.toml").filter.max_gap_s == 0.25
+
+
+def test_tracker_method_options(tmp_path: Path) -> None:
+    cases = [
+        ({"method": "fast"}, "method must be one of colour, white-core"),
+        ({"method": "colour", "core": 200}, "unknown option 'core' for method 'colour'"),
+        ({"busy_frames": 3}, "it is an option of method 'colour'"),
+        ({"method": "colour", "saturated": "high"}, "saturated must be a whole number"),
+        ({"method": "colour", "halo": True}, "halo must be a number"),
+    ]
+    for options, text in cases:
+        with pytest.raises(TrackerError, match=text) as info:
+            open_tracker("laser-pointer", options, tmp_path / "absent.yml")
+        assert "\n" not in str(info.value)
