@@ -31,8 +31,8 @@ REPO = Path(__file__).resolve().parents[1]
 CHECKED = ("README.md", *sorted(f"docs/{p.name}" for p in (REPO / "docs").glob("*.md")))
 SETUP = ("make demo", "make test", "make setup", ". .venv/bin/activate")
 MARK = re.compile(
-    r"#\s*(needs (a camera|root|a display|the system install|a USB gadget|the \S+ plugin)"
-    r"|takes minutes)"
+    r"#\s*(needs (a camera|root|a display|the system install|a USB gadget|the \S+ plugin"
+    r"|a cluster|your archive)|takes minutes)"
 )
 """Why a line is not run: the hardware, privileges or installed files it needs."""
 HEREDOC = re.compile(r"^(?:cat > (\S+)|python3? -) <<'?(\w+)'?\s*$")
