@@ -108,6 +108,8 @@ class ColourSpotDetector:
         busy_events: frames of the last 16 with darker content that make a block busy.
         new_margin: grey levels below ``saturated`` the model's laser channel must be
             for a clipped pixel to be new.
+        confirm: frames in a row a spot must be found (each within ``track_px`` of the
+            one before) before it is reported (1: at once).
         position: "centroid" (the soft-edged centroid of the clipped blob) or "fit" (the
             beam centre from a Gaussian fit to the laser channel's rise over the model on
             the unclipped pixels around the blob; the centroid where it does not fit).
@@ -140,6 +142,7 @@ class ColourSpotDetector:
         busy_events: int = 2,
         position: str = "centroid",
         new_margin: int = _NEW_MARGIN,
+        confirm: int = 1,
     ) -> None:
         if colour not in COLOURS:
             raise ValueError(f"colour must be one of {', '.join(COLOURS)}, got {colour!r}")
@@ -192,6 +195,10 @@ class ColourSpotDetector:
         if not 1 <= new_margin < saturated:
             raise ValueError(f"need 1 <= new_margin < saturated, got {new_margin}")
         self.new_margin = new_margin
+        if not 1 <= confirm <= 10:
+            raise ValueError(f"need confirm 1..10, got {confirm}")
+        self.confirm = confirm
+        self._run = 0  # frames in a row with a spot, each near the one before
         self.half = math.ceil(math.sqrt(max_area / math.pi)) + 12  # window half size, px
         self._k3 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
         self._k7 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
@@ -217,6 +224,7 @@ class ColourSpotDetector:
         """Forget the content model (the next frame starts it again)."""
         self.background = None
         self._last = None
+        self._run = 0
 
     # -- per frame -------------------------------------------------------------------
 
@@ -233,9 +241,14 @@ class ColourSpotDetector:
             spot = None
         else:
             spot = self._detect(image, bg)
-        self._last = spot
+        last, self._last = self._last, spot
         self._frame += 1
-        return spot
+        if spot is None:
+            self._run = 0
+            return None
+        near = last is not None and math.hypot(last.u - spot.u, last.v - spot.v) <= self.track_px
+        self._run = self._run + 1 if near else 1
+        return spot if self._run >= self.confirm else None
 
     def _detect(self, image: NDArray[np.uint8], bg: NDArray[np.uint8]) -> LaserSpot | None:
         k = self.step
