@@ -20,7 +20,7 @@ $(VENV)/.system-deps: scripts/install-system-deps.sh | $(BIN)/python
 	touch $@
 
 $(VENV)/.installed: $(BIN)/python $(VENV)/.system-deps pyproject.toml $(PLUGINS)
-	$(BIN)/python -m pip install --quiet -e '.[test,hw]' $(addprefix -e ,$(dir $(PLUGINS)))
+	$(BIN)/python -m pip install --quiet -e '.[test,hw,batch]' $(addprefix -e ,$(dir $(PLUGINS)))
 	touch $@
 
 setup: $(VENV)/.installed

@@ -19,7 +19,7 @@ from omnidev.panotable.general import fit_general
 from omnidev.panotable.table import calibrate, calibrate_general, dissertation_misfit
 from omnidev.sim.imperfect import ImperfectCamera, PolyFisheyeCamera, rotation_vector
 from omnidev.sim.mirrors import SvpHyperbolicCamera
-from omnidev.views import Panorama, Perspective, TopView
+from omnidev.views import Panorama, Perspective, Plane, TopView
 
 
 def landmarks(cam, n: int, seed: int, noise: float = 0.0, dist=(1.0, 3.0)):
@@ -211,20 +211,48 @@ def test_fast_maps_equal_the_point_route(lookup, tilted, general_table):
         assert np.max(np.abs(fast.map_y - slow.map_y)[fast.valid], initial=0) < 2e-3
 
 
+VIEWS = {  # what the upward-looking fisheye of general_table sees
+    "panorama": Panorama(2048, 512),
+    "perspective": Perspective(1280, 720, 90.0, 30.0, 40.0),
+    "top": TopView(800, 800, 4.0, 4.0, 1.5),
+    "plane": Plane(800, 600, (1.0, 0.5, 1.2), (1.0, 0.2, -0.6), 1.2, 0.9, 10.0),
+}
+
+
+@pytest.mark.parametrize("view_name", list(VIEWS))
 @pytest.mark.parametrize("tilted", [False, True], ids=["level", "tilted"])
-def test_panorama_maps_take_at_most_32_bytes_per_pixel(tilted, general_table):
-    table = (
-        general_table.table if tilted else dataclasses.replace(general_table.table, tilt=(0.0, 0.0))
-    )
-    cam = PanoTableCamera(table)
-    table.padded  # noqa: B018  (the table belongs to the loaded camera, not to map building)
-    view = Panorama(2048, 512)
+def test_maps_take_at_most_32_bytes_per_pixel_and_no_table(view_name, tilted, general_table):
+    tilt = general_table.table.tilt if tilted else (0.0, 0.0)
+    table = dataclasses.replace(general_table.table, tilt=tilt, _table=None)
+    cam = PanoTableCamera(table)  # the default lookup of a table defined by its mapping
+    assert cam.resolved_lookup == "analytic"
+    view = VIEWS[view_name]
     tracemalloc.start()
     base = tracemalloc.get_traced_memory()[0]
     maps = build_maps(cam, view)
     peak = tracemalloc.get_traced_memory()[1] - base
     tracemalloc.stop()
-    per_px = peak / (2048 * 512)
-    print(f"{'tilted' if tilted else 'level'} panorama maps: {per_px:.1f} bytes per output pixel")
-    assert maps.valid.mean() > 0.9
+    per_px = peak / (view.width * view.height)
+    kind = "tilted" if tilted else "level"
+    print(f"{kind} {view_name} maps: {per_px:.1f} bytes per output pixel")
+    assert table._table is None  # no table entries were built
+    assert maps.valid.mean() > 0.8
+    # 9 are the maps themselves, the rest one block's temporaries (a fixed few MB, so
+    # smaller views pay more per pixel); measured 10.6-20.2
     assert per_px <= 32.0
+    ref = build_maps(PanoTableCamera(table, "bilinear"), view)  # through the table's entries
+    np.testing.assert_array_equal(maps.valid, ref.valid)
+    d = np.hypot(maps.map_x - ref.map_x, maps.map_y - ref.map_y)[maps.valid]
+    assert d.max() < 2e-3  # measured 3e-4 .. 1.3e-3 px
+
+
+def test_load_camera_reads_the_definition_only(general_table, tmp_path):
+    p = tmp_path / "cam.yml.gz"
+    save_table(p, general_table)
+    cam = omnidev.load_camera(p)
+    assert cam.table._table is None and not cam.table.stored_entries
+    assert cam.resolved_lookup == "analytic"
+    assert PanoTableCamera(cam.table, "nearest").resolved_lookup == "nearest"
+    save_table(tmp_path / "stored.yml.gz", general_table, store_table=True)
+    stored = omnidev.load_camera(tmp_path / "stored.yml.gz")
+    assert stored.table.stored_entries and stored.resolved_lookup == "bilinear"

@@ -29,6 +29,7 @@ SUBCOMMANDS = (
     "laser_cmd",
     "nonsvp_cmd",
     "eval_cmd",
+    "batch_cmd",
 )
 
 

@@ -32,7 +32,7 @@ def register(sub: Any) -> None:
     )
     p.add_argument(
         "--predict",
-        choices=("rotation", "similarity", "translation"),
+        choices=("flow", "rotation", "similarity", "translation"),
         default="rotation",
         help="how one or two missing landmarks are predicted (translation: the dissertation's)",
     )
@@ -40,7 +40,7 @@ def register(sub: Any) -> None:
         "--fov-deg",
         type=float,
         default=60.0,
-        help="the webcam's horizontal field of view, degrees (for --predict rotation)",
+        help="the webcam's horizontal field of view, degrees (--predict rotation; flow's fallback)",
     )
     add_pointer_arguments(p)
     p.set_defaults(func=run)
@@ -59,7 +59,7 @@ def register(sub: Any) -> None:
     )
     ev.add_argument(
         "--predict",
-        choices=("rotation", "similarity", "translation"),
+        choices=("flow", "rotation", "similarity", "translation"),
         default="rotation",
         help="how missing landmarks are predicted (translation: the dissertation's)",
     )
@@ -208,7 +208,11 @@ def evaluate_fixture(
     cursors: list[tuple[float, float] | None] = []
     with open_source(str(folder / "mouse.avi")) as source:
         for frame in source:
-            s = tracker.track(Frame(frame.image, frame.index, frame.index))
+            # capture times from the truth's frame times (the file's are delivery times)
+            i = frame.index
+            t = truth[i].get("t") if i < len(truth) else None
+            ts = round(float(t) * 1e9) if isinstance(t, int | float) else i
+            s = tracker.track(Frame(frame.image, ts, i))
             cursors.append(None if s is None else (s.x, s.y))
     if len(cursors) != len(truth):
         raise OmnidevError(

@@ -18,7 +18,7 @@ import json
 import os
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, cast
 
@@ -142,12 +142,10 @@ def run(args: argparse.Namespace) -> int:
             )
         if layout == "bgr" and first.image.ndim == 2:
             layout = "gray"
-        remaps = [_remapper(m, layout, args.interpolation) for m in maps]
+        remaps = [remapper_for(m, layout, args.interpolation) for m in maps]
         fps = args.fps or source.fps or 25.0
         live = bool(getattr(source, "live", False))
-        preferred: tuple[Layout, ...] = (
-            (layout, "yuv420p", "bgr") if layout == "yuvj420p" else (layout,)
-        )
+        preferred = output_layouts(layout)
         with contextlib.ExitStack() as stack:
             outputs: list[Output] = []
             for o, m in zip(outputs_uris, maps, strict=True):
@@ -203,11 +201,20 @@ def _open_input(uri: str, threads: int) -> Source:
 
 
 def _layout(source: Source, maps: list[Maps]) -> Layout:
-    native = getattr(source, "native_layout", "bgr")
+    return frame_layout(getattr(source, "native_layout", "bgr"), maps)
+
+
+def frame_layout(native: str, maps: Sequence[Maps]) -> Layout:
+    """The layout frames are remapped in: the decoder's 4:2:0 when every view is even-sized."""
     even = all(m.shape[0] % 2 == 0 and m.shape[1] % 2 == 0 for m in maps)
     if native in ("yuv420p", "yuvj420p") and even:
         return cast(Layout, native)
     return "bgr"
+
+
+def output_layouts(layout: Layout) -> tuple[Layout, ...]:
+    """The layouts offered to the outputs for frames in ``layout``, preferred first."""
+    return (layout, "yuv420p", "bgr") if layout == "yuvj420p" else (layout,)
 
 
 def _frames(source: Source, layout: Layout) -> Iterator[Frame]:
@@ -222,7 +229,8 @@ def _size(image: Any, layout: Layout) -> tuple[int, int]:
     return int(image.shape[1]), int(image.shape[0])
 
 
-def _remapper(maps: Maps, layout: Layout, interpolation: Any) -> Remap:
+def remapper_for(maps: Maps, layout: Layout, interpolation: Any) -> Remap:
+    """The remap that unwarps frames in ``layout`` (4:2:0 plane by plane, else BGR/gray)."""
     if layout in ("yuv420p", "yuvj420p"):
         return PlanarRemapper(maps, interpolation=interpolation, full_range=layout == "yuvj420p")
     return Remapper(maps, interpolation=interpolation)

@@ -25,6 +25,23 @@ homography predicts (``max_area_spread``).
 A group is kept when at least ``min_border_sides`` of its four sides show a border line
 above the floor and no side shows one off the predicted position.
 
+Verification added for hand-held videos never seen in tuning (issue 13; each can be
+turned off, which gives the stages above):
+
+- ``threshold_mode="adaptive"``: a pixel is dark when it is darker than the mean of its
+  neighbourhood at two scales (small and large discs), so a dim room, a bright screen
+  or auto-exposure does not move the landmarks across one fixed grey level; the
+  dissertation's fixed threshold stays selectable (``"fixed"``).
+- appearance: a region must be darker than a ring around it (the landmark's white
+  square), ``min_ring_contrast``;
+- physical shape: the group's homography from the layout (mm) must be that of a plane
+  seen by a pinhole camera with its principal point at the image centre and a focal
+  length of a ``fov_range_deg`` field of view: its two plane axes must come out
+  orthogonal and of equal length (``max_rigid_error``), so a text window's four
+  corners or look-alikes of the wrong aspect ratio cannot pass under any plausible
+  lens; and each region's area must be that of a landmark disc where the homography
+  puts it (``disc_area_range``).
+
 All positions are image pixels (x right, y down, origin at the center of the top-left pixel).
 """
 
@@ -32,7 +49,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -75,6 +93,29 @@ class DetectParams:
         canny_low, canny_high: hysteresis thresholds of the Canny edge map voting in the
             Hough transform (grey levels of the Sobel gradient).
         refine: refine centers by the darkness-weighted centroid (else binary centroid).
+        border_search: "predicted" (step 6's Hough window is a band of half-width
+            max(``max_border_offset_px``, ``border_band_frac`` x the landmark-to-border
+            distance) around the screen border the group predicts) or the
+            dissertation's "side" (from the landmark side inwards).
+        min_border_step: with "predicted", a side votes only when the colour steps
+            across the predicted border coherently along it: in the channel of the
+            largest mean difference between both sides, the mean reaches this many grey
+            levels and 3/4 of the points agree in sign (edges of sensor noise or of a
+            textured wall do not; 0 turns it off).
+        threshold_mode: "adaptive" (darker than the local mean by ``adaptive_c`` grey
+            levels over windows of ``block_fracs`` x the image's smaller side), the
+            dissertation's "fixed" (``threshold``), or "both" (adaptive, then fixed
+            when adaptive finds no group; the default).
+        max_area_frac: with "adaptive", regions may cover up to this fraction of the
+            image (instead of ``max_area``).
+        min_ring_contrast: a region's centre must be this many grey levels darker than
+            the median of a ring at 1.3 x its radius (0 turns the check off).
+        max_rigid_error: largest deviation from a rigid plane of the group's homography
+            (the cosine between its plane axes and their relative length difference,
+            at the best focal length of ``fov_range_deg``); inf turns the check off.
+        fov_range_deg: horizontal fields of view that a webcam may have.
+        disc_area_range: each region's area over the landmark disc's area that the
+            homography predicts there must lie in this range.
     """
 
     threshold: int = 100
@@ -96,6 +137,17 @@ class DetectParams:
     canny_low: float = 30.0
     canny_high: float = 90.0
     refine: bool = True
+    threshold_mode: str = "both"
+    border_search: str = "predicted"
+    min_border_step: float = 12.0
+    border_band_frac: float = 0.3
+    block_fracs: tuple[float, ...] = (0.06, 0.2)
+    adaptive_c: float = 12.0
+    max_area_frac: float = 0.02
+    min_ring_contrast: float = 20.0
+    max_rigid_error: float = 0.15
+    fov_range_deg: tuple[float, float] = (30.0, 120.0)
+    disc_area_range: tuple[float, float] = (0.3, 3.0)
 
 
 @dataclass(frozen=True)
@@ -170,30 +222,146 @@ def find_dark_regions(
 
 def _regions(
     gray: NDArray[np.uint8], params: DetectParams
-) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int32], list[int]]:
-    """Steps 1-3: binary centroids (n, 2), the label image, the stats and the labels kept."""
-    dark = (gray < params.threshold).astype(np.uint8)
-    n, labels, stats, centroids = cv2.connectedComponentsWithStats(dark, connectivity=8)
-    keep: list[tuple[int, int]] = []
-    for i in range(1, n):
-        x, y, w, h, area = (int(v) for v in stats[i])
-        if not params.min_area <= area <= params.max_area:
+) -> tuple[NDArray[np.float64], _RegionLabels, NDArray[np.int32], list[int]]:
+    """Steps 1-3: binary centroids (n, 2), the label image, the stats and the labels kept.
+
+    With ``threshold_mode="adaptive"`` the dark masks of the scales are labelled apart
+    and the label image holds them side by side (labels of scale k offset by the counts
+    of the scales before); a region found at two scales is kept once (the larger).
+    """
+    H, W = gray.shape
+    if params.threshold_mode == "fixed":
+        masks = [(gray < params.threshold).astype(np.uint8)]
+        max_area = params.max_area
+    elif params.threshold_mode in ("adaptive", "both"):
+        masks = []
+        g = gray.astype(np.float32)
+        for frac in params.block_fracs:
+            b = max(3, round(frac * min(H, W)) | 1)
+            mean = cv2.boxFilter(g, -1, (b, b), borderType=cv2.BORDER_REPLICATE)
+            masks.append((g < mean - params.adaptive_c).astype(np.uint8))
+        max_area = max(params.max_area, round(params.max_area_frac * H * W))
+    else:
+        raise ValueError(
+            f"threshold_mode must be 'adaptive' or 'fixed', got {params.threshold_mode!r}"
+        )
+    # the scales' label images side by side: label l of scale k is l + offset_k in a
+    # (k, H, W) stack flattened by _RegionLabels
+    label_list: list[NDArray[np.int32]] = []
+    all_stats: list[NDArray[np.int32]] = [np.zeros((1, 5), np.int32)]
+    all_cent: list[NDArray[np.float64]] = [np.zeros((1, 2))]
+    offsets = []
+    offset = 0
+    for dark in masks:
+        n, labels, stats, centroids = cv2.connectedComponentsWithStats(dark, connectivity=8)
+        label_list.append(np.asarray(labels, np.int32))
+        offsets.append(offset)
+        all_stats.append(np.asarray(stats[1:], np.int32))
+        all_cent.append(np.asarray(centroids[1:], np.float64))
+        offset += n - 1
+    stats = np.concatenate(all_stats)
+    centroids = np.concatenate(all_cent)
+    x, y, w, h, area = (stats[:, k].astype(np.int64) for k in range(5))
+    ok = (area >= params.min_area) & (area <= max_area)
+    ok &= np.maximum(w, h) <= params.max_elongation * np.minimum(w, h)
+    # a region touching the image border is cut off: its center would be wrong
+    ok &= (x > 0) & (y > 0) & (x + w < W) & (y + h < H)
+    # a disc or an ellipse fills about pi/4 of its box; text strokes and frames less
+    ok &= area >= 0.45 * w * h
+    ok[0] = False
+    idx = np.flatnonzero(ok)
+    r = np.sqrt(area[idx] / math.pi)
+    contrast = _ring_contrasts(gray, np.asarray(centroids[idx], np.float64), r)
+    if params.min_ring_contrast > 0:
+        sel = contrast >= params.min_ring_contrast
+        idx, r, contrast = idx[sel], r[sel], contrast[sel]
+    # the regions darkest against their ring first (the largest with a fixed threshold);
+    # a blob found at both scales is kept once
+    order = np.argsort(-contrast if params.threshold_mode != "fixed" else -area[idx], kind="stable")
+    kept: list[int] = []
+    for k in order:
+        i = int(idx[k])
+        c = centroids[i]
+        if any(np.hypot(*(centroids[j] - c)) < max(2.0, 0.5 * r[k]) for j in kept):
             continue
-        if max(w, h) > params.max_elongation * min(w, h):
-            continue
-        # A region touching the image border is cut off: its center would be wrong.
-        if x == 0 or y == 0 or x + w == gray.shape[1] or y + h == gray.shape[0]:
-            continue
-        keep.append((area, i))
-    keep.sort(reverse=True)
-    keep = keep[: params.max_regions]
-    ids = [i for _, i in keep]
-    out = np.array(centroids[ids], dtype=np.float64).reshape(len(ids), 2)
-    return out, np.asarray(labels, np.int32), np.asarray(stats, np.int32), ids
+        kept.append(i)
+        if len(kept) >= params.max_regions:
+            break
+    out = np.array(centroids[kept], dtype=np.float64).reshape(len(kept), 2)
+    return out, _RegionLabels(label_list, offsets), np.asarray(stats, np.int32), kept
+
+
+@dataclass(frozen=True)
+class _RegionLabels:
+    """Label images of the threshold scales; global label g (1-based) is local label
+    g - offsets[k] of scale k, the last k with offsets[k] < g."""
+
+    images: list[NDArray[np.int32]]
+    offsets: list[int]
+
+    def mask(self, label: int, y0: int, y1: int, x0: int, x1: int) -> NDArray[np.bool_]:
+        k = max(i for i, o in enumerate(self.offsets) if o < label)
+        return np.asarray(self.images[k][y0:y1, x0:x1] == label - self.offsets[k])
+
+
+def _ring_contrasts(
+    gray: NDArray[np.uint8], c: NDArray[np.float64], r: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """How much darker (grey levels) each region centred at ``c`` (n, 2) with radius
+    ``r`` (n,) px is than the median of 16 samples on a ring at 1.3 r + 1 px around it
+    (the landmark's white square): ring median minus the 3 x 3 mean at the centre."""
+    H, W = gray.shape
+    if len(c) == 0:
+        return np.zeros(0)
+    ang = np.arange(16) * (math.pi / 8)
+    rr = (1.3 * r + 1.0)[:, None]
+    xs = np.clip(np.round(c[:, 0:1] + rr * np.cos(ang)).astype(np.intp), 0, W - 1)
+    ys = np.clip(np.round(c[:, 1:2] + rr * np.sin(ang)).astype(np.intp), 0, H - 1)
+    ring = np.median(gray[ys, xs].astype(np.float64), axis=1)
+    ix = np.clip(np.round(c[:, 0]).astype(np.intp), 1, W - 2)
+    iy = np.clip(np.round(c[:, 1]).astype(np.intp), 1, H - 2)
+    core = np.zeros(len(c))
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            core += gray[iy + dy, ix + dx]
+    return np.asarray(ring - core / 9.0, np.float64)
+
+
+def rigid_plane_error(
+    plane_to_image: NDArray[np.float64],
+    center_px: NDArray[np.float64],
+    focal_range_px: tuple[float, float],
+) -> tuple[float, float]:
+    """How far a plane-to-image homography is from a plane seen by a pinhole camera
+    with square pixels, principal point ``center_px`` and a focal length in
+    ``focal_range_px``: (error, best focal px).
+
+    With K = diag(f, f, 1) about the principal point, K^-1 H = [a1 a2 a3] must have
+    a1 . a2 = 0 and |a1| = |a2| (columns of a rotation, scaled). The focal length is
+    the least-squares one of the two conditions (in 1 / f^2), clamped to the range;
+    the error is the larger of |cos(a1, a2)| and | |a1| / |a2| - 1 |.
+    """
+    T = np.array([[1.0, 0.0, -center_px[0]], [0.0, 1.0, -center_px[1]], [0.0, 0.0, 1.0]])
+    h = T @ plane_to_image
+    h = h / np.linalg.norm(h[:, :2])
+    P = h[0, 0] * h[0, 1] + h[1, 0] * h[1, 1]
+    Q = h[2, 0] * h[2, 1]
+    R = h[0, 0] ** 2 + h[1, 0] ** 2 - h[0, 1] ** 2 - h[1, 1] ** 2
+    S = h[2, 0] ** 2 - h[2, 1] ** 2
+    lo, hi = focal_range_px
+    den = P * P + R * R
+    x = -(P * Q + R * S) / den if den > 0 else 1.0 / (lo * hi)
+    x = min(max(x, 1.0 / hi**2), 1.0 / lo**2)
+    f = 1.0 / math.sqrt(x)
+    a1 = np.array([h[0, 0] / f, h[1, 0] / f, h[2, 0]])
+    a2 = np.array([h[0, 1] / f, h[1, 1] / f, h[2, 1]])
+    n1, n2 = float(np.linalg.norm(a1)), float(np.linalg.norm(a2))
+    cos = abs(float(a1 @ a2)) / (n1 * n2)
+    return max(cos, abs(n1 / n2 - 1.0)), f
 
 
 def _weighted_centroid(
-    gray: NDArray[np.uint8], stat: NDArray[np.int32], labels: NDArray[np.int32], label: int
+    gray: NDArray[np.uint8], stat: NDArray[np.int32], labels: _RegionLabels, label: int
 ) -> NDArray[np.float64]:
     """Darkness-weighted centroid over the region's box grown by 2 pixels; darkness is
     scaled between the box's brightest level (0) and the region's mean level (1)."""
@@ -201,7 +369,7 @@ def _weighted_centroid(
     x0, y0 = max(0, x - 2), max(0, y - 2)
     x1, y1 = min(gray.shape[1], x + w + 2), min(gray.shape[0], y + h + 2)
     patch = gray[y0:y1, x0:x1].astype(np.float64)
-    mask = labels[y0:y1, x0:x1] == label
+    mask = labels.mask(label, y0, y1, x0, x1)
     inner = patch[mask]
     lo, hi = float(inner.mean()), float(patch.max())
     if hi - lo < 1.0:
@@ -295,7 +463,7 @@ def side_edge_strength(
     """
     v = q - p
     length = float(np.hypot(*v))
-    if length < 1.0:
+    if not length >= 1.0:  # also NaN (a degenerate group)
         return 0.0, 0.0, None
     t_hat = v / length
     n_hat = np.array([-t_hat[1], t_hat[0]])  # inwards for clockwise order with y down
@@ -354,13 +522,20 @@ def detect_landmarks(
     of four regions passes the shape checks and the edge-strength floor (no false lock
     with fewer than four landmark-like blobs).
     """
+    if params.threshold_mode == "both":
+        # the dissertation's fixed threshold first, the adaptive one where it finds
+        # nothing (a dim room, a bright screen); the same checks verify both
+        found = detect_landmarks(image, layout, replace(params, threshold_mode="fixed"))
+        if found is None:
+            found = detect_landmarks(image, layout, replace(params, threshold_mode="adaptive"))
+        return found
     gray = to_gray(image)
     centers, labels, stats, ids = _regions(gray, params)
     if len(centers) < 4:
         return None
     expected = layout.landmark_aspect_ratio()
     # Step 4, exhaustively: every group of four regions, vectorized over the groups.
-    groups = np.array(list(itertools.combinations(range(len(centers)), 4)), dtype=np.intp)
+    groups = _combinations4(len(centers))
     perm = _order_batch_index(centers[groups])
     groups = np.take_along_axis(groups, perm, axis=1)
     quads = centers[groups]
@@ -379,22 +554,64 @@ def detect_landmarks(
     ]
     areas = np.array([float(stats[i][4]) for i in ids])
     disc_mm2 = math.pi * (layout.circle_diameter_mm / 2.0) ** 2
+    h_img, w_img = gray.shape
+    centre = np.array([(w_img - 1) / 2.0, (h_img - 1) / 2.0])
+    fov_lo, fov_hi = params.fov_range_deg
+    focal_range = (
+        w_img / 2 / math.tan(math.radians(fov_hi) / 2),
+        w_img / 2 / math.tan(math.radians(fov_lo) / 2),
+    )
+    # Disc areas, then the rigid-plane check, vectorized over the candidates.
+    cq = np.asarray(candidates)
+    cg = np.asarray(cand_groups)
+    Hs = homographies_from_4_points(layout.landmark_centers_mm(), cq)
+    ratio = areas[cg] / (disc_mm2 * _area_scale_batch(Hs, layout.landmark_centers_mm()))
+    keep = np.ones(len(cq), bool)
+    if math.isfinite(params.max_area_spread):
+        keep &= ratio.max(axis=1) <= params.max_area_spread * ratio.min(axis=1)
+    if math.isfinite(params.max_rigid_error):
+        lo_a, hi_a = params.disc_area_range
+        keep &= (ratio.min(axis=1) >= lo_a) & (ratio.max(axis=1) <= hi_a)
+        keep &= rigid_plane_errors(Hs, centre, focal_range) <= params.max_rigid_error
     best: Detection | None = None
     best_group: NDArray[np.intp] | None = None
-    for quad, group in zip(candidates, cand_groups, strict=True):
-        if math.isfinite(params.max_area_spread):
-            ratio = areas[group] / (disc_mm2 * _area_scale(layout.landmark_centers_mm(), quad))
-            if ratio.max() > params.max_area_spread * ratio.min():
-                continue
+    for quad, group in zip(cq[keep], cg[keep], strict=True):
         strengths: list[float] = []
         weak = 0
         misplaced = False
         screen = screen_corners_from_landmarks(quad, layout)
+        if not np.all(np.isfinite(screen)):
+            continue
         for i in range(4):
             p, q = quad[i], quad[(i + 1) % 4]
             px_per_mm = float(np.linalg.norm(q - p)) / side_mm[i]
-            depth = max(4.0, 2.0 * inset_mm[i] * px_per_mm)
-            e, span, line = side_edge_strength(edges, p, q, depth, params)
+            if params.border_search == "predicted":
+                # a band around the screen border where the group puts it (the bezel's
+                # outer edge, between an overhanging card and the screen, stays out)
+                a, b = screen[i], screen[(i + 1) % 4]
+                if params.min_border_step > 0 and not _border_step(
+                    image,
+                    a,
+                    b,
+                    max(2.0, params.border_band_frac * inset_mm[i] * px_per_mm),
+                    params,
+                ):
+                    weak += 1  # no change of colour across the border: no vote
+                    if weak > 4 - params.min_border_sides:
+                        break
+                    strengths.append(0.0)
+                    continue
+                band = max(
+                    params.max_border_offset_px, params.border_band_frac * inset_mm[i] * px_per_mm
+                )
+                v = (b - a) / max(float(np.linalg.norm(b - a)), 1e-9)
+                nrm = np.array([-v[1], v[0]])
+                e, span, line = side_edge_strength(
+                    edges, a - nrm * band, b - nrm * band, 2 * band, params
+                )
+            else:
+                depth = max(4.0, 2.0 * inset_mm[i] * px_per_mm)
+                e, span, line = side_edge_strength(edges, p, q, depth, params)
             if e < params.min_edge_fraction * span:
                 weak += 1  # no clear border here (content as dark as the bezel): no vote
             elif line is not None and math.isfinite(params.max_border_offset_px):
@@ -434,6 +651,79 @@ def detect_landmarks(
     )
 
 
+@lru_cache(maxsize=64)
+def _combinations4(n: int) -> NDArray[np.intp]:
+    """(C(n, 4), 4) every group of four of n indices (cached, read-only)."""
+    out = np.array(list(itertools.combinations(range(n), 4)), dtype=np.intp).reshape(-1, 4)
+    out.setflags(write=False)
+    return out
+
+
+def homographies_from_4_points(
+    src: NDArray[np.float64], dst: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(m, 3, 3) exact homographies taking the four points ``src`` (4, 2) onto each of
+    ``dst`` (m, 4, 2), by the 8 x 8 DLT systems (h33 = 1) solved together; a degenerate
+    group gives NaN."""
+    m = len(dst)
+    A = np.zeros((m, 8, 8))
+    b = np.zeros((m, 8))
+    for i in range(4):
+        x, y = src[i]
+        u, v = dst[:, i, 0], dst[:, i, 1]
+        A[:, 2 * i, 0], A[:, 2 * i, 1], A[:, 2 * i, 2] = x, y, 1.0
+        A[:, 2 * i, 6], A[:, 2 * i, 7] = -u * x, -u * y
+        A[:, 2 * i + 1, 3], A[:, 2 * i + 1, 4], A[:, 2 * i + 1, 5] = x, y, 1.0
+        A[:, 2 * i + 1, 6], A[:, 2 * i + 1, 7] = -v * x, -v * y
+        b[:, 2 * i], b[:, 2 * i + 1] = u, v
+    det = np.linalg.det(A)
+    ok = np.abs(det) > 1e-12
+    A[~ok] = np.eye(8)
+    h = np.linalg.solve(A, b[..., None])[..., 0]
+    h[~ok] = np.nan
+    return np.concatenate([h, np.ones((m, 1))], axis=1).reshape(m, 3, 3)
+
+
+def _area_scale_batch(Hs: NDArray[np.float64], plane: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(m, 4) image pixels per plane unit^2 at the four plane points (4, 2) under each
+    homography of (m, 3, 3): the Jacobian determinant of the projective map."""
+    v = np.einsum("mij,kj->mki", Hs, np.column_stack([plane, np.ones(4)]))  # (m, 4, 3)
+    w = v[..., 2]
+    a, bb = Hs[:, None, 0, :2], Hs[:, None, 1, :2]  # (m, 1, 2)
+    g = Hs[:, None, 2, :2]
+    # J = (A w - p g^T) / w^2 with A the top-left 2x2, p = (v0, v1)
+    j00 = (a[..., 0] * w - v[..., 0] * g[..., 0]) / w**2
+    j01 = (a[..., 1] * w - v[..., 0] * g[..., 1]) / w**2
+    j10 = (bb[..., 0] * w - v[..., 1] * g[..., 0]) / w**2
+    j11 = (bb[..., 1] * w - v[..., 1] * g[..., 1]) / w**2
+    return np.asarray(np.abs(j00 * j11 - j01 * j10), np.float64)
+
+
+def rigid_plane_errors(
+    Hs: NDArray[np.float64], center_px: NDArray[np.float64], focal_range_px: tuple[float, float]
+) -> NDArray[np.float64]:
+    """:func:`rigid_plane_error` of each homography of (m, 3, 3), vectorized (NaN -> inf)."""
+    T = np.array([[1.0, 0.0, -center_px[0]], [0.0, 1.0, -center_px[1]], [0.0, 0.0, 1.0]])
+    h = T @ Hs
+    h = h / np.linalg.norm(h[:, :, :2].reshape(len(h), -1), axis=1)[:, None, None]
+    P = h[:, 0, 0] * h[:, 0, 1] + h[:, 1, 0] * h[:, 1, 1]
+    Q = h[:, 2, 0] * h[:, 2, 1]
+    R = h[:, 0, 0] ** 2 + h[:, 1, 0] ** 2 - h[:, 0, 1] ** 2 - h[:, 1, 1] ** 2
+    S = h[:, 2, 0] ** 2 - h[:, 2, 1] ** 2
+    lo, hi = focal_range_px
+    den = P * P + R * R
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = np.where(den > 0, -(P * Q + R * S) / np.where(den > 0, den, 1.0), 1.0 / (lo * hi))
+    x = np.clip(x, 1.0 / hi**2, 1.0 / lo**2)
+    f = 1.0 / np.sqrt(x)
+    a1 = np.stack([h[:, 0, 0] / f, h[:, 1, 0] / f, h[:, 2, 0]], 1)
+    a2 = np.stack([h[:, 0, 1] / f, h[:, 1, 1] / f, h[:, 2, 1]], 1)
+    n1, n2 = np.linalg.norm(a1, axis=1), np.linalg.norm(a2, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        err = np.maximum(np.abs((a1 * a2).sum(1)) / (n1 * n2), np.abs(n1 / n2 - 1.0))
+    return np.asarray(np.where(np.isfinite(err), err, np.inf), np.float64)
+
+
 def _area_scale(
     plane_mm: NDArray[np.float64], image_px: NDArray[np.float64]
 ) -> NDArray[np.float64]:
@@ -447,6 +737,44 @@ def _area_scale(
         J = (Hm[:2, :2] * w[k] - np.outer(v[k, :2], Hm[2, :2])) / w[k] ** 2
         out[k] = abs(np.linalg.det(J))
     return out
+
+
+def _border_step(
+    image: NDArray[np.uint8],
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    offset: float,
+    params: DetectParams,
+) -> bool:
+    """Whether the colour steps across the segment a -> b (px) the same way along it:
+    24 points (the ``end_margin`` left out at both ends) sampled ``offset`` px to both
+    sides; in the channel with the largest mean difference, the mean reaches
+    ``params.min_border_step`` and three quarters of the points share its sign (a
+    textured wall or noise differs too, but not coherently); and the bezel side is plain
+    (its spread at most 10 grey levels + a quarter of the step)."""
+    v = b - a
+    n = float(np.hypot(*v))
+    if n < 4:
+        return False
+    t = v / n
+    nrm = np.array([-t[1], t[0]])
+    s = np.linspace(params.end_margin, 1 - params.end_margin, 24)[:, None]
+    pts = a + s * v
+    h, w = image.shape[:2]
+    img = image if image.ndim == 3 else image[..., None]
+
+    def sample(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        x = np.clip(np.round(q[:, 0]).astype(np.intp), 0, w - 1)
+        y = np.clip(np.round(q[:, 1]).astype(np.intp), 0, h - 1)
+        return img[y, x].astype(np.float64)
+
+    outside = sample(pts - offset * nrm)  # the bezel side (nrm points into the screen)
+    d = sample(pts + offset * nrm) - outside  # (24, channels), signed
+    m = d.mean(axis=0)
+    c = int(np.argmax(np.abs(m)))
+    same = float(np.mean(np.sign(d[:, c]) == np.sign(m[c])))
+    flat = float(outside[:, c].std()) <= 10.0 + 0.25 * abs(float(m[c]))  # a bezel is plain
+    return bool(abs(m[c]) >= params.min_border_step and same >= 0.75 and flat)
 
 
 def _inset(

@@ -131,3 +131,224 @@ def evaluate(
             continue
         cls.errors_px.append(cursor_error_px(c, t["screen_xy"], screen_px))
     return fig
+
+
+# ------------------------------------------------------------------ randomized videos
+
+ON_SCREEN_CLASSES = ("all4", "predicted")
+GROSS_PX = 50.0  # a cursor farther than this from the truth is counted as wrong
+
+
+def _stats(errors: Sequence[float]) -> dict[str, Any]:
+    """RMS, p95 and max (px) of finite errors, with their count."""
+    e = np.asarray(errors, dtype=np.float64)
+    if not e.size:
+        return {"n": 0, "rms_px": None, "p95_px": None, "max_px": None}
+    return {
+        "n": int(e.size),
+        "rms_px": round(float(np.sqrt(np.mean(e * e))), 3),
+        "p95_px": round(float(np.percentile(e, 95)), 3),
+        "max_px": round(float(e.max()), 3),
+    }
+
+
+def _clamp01(xy: Sequence[float]) -> tuple[float, float]:
+    return (min(1.0, max(0.0, float(xy[0]))), min(1.0, max(0.0, float(xy[1]))))
+
+
+@dataclass
+class VideoErrors:
+    """Per-frame errors of one randomized video, by class (see :func:`video_errors`)."""
+
+    kind: str
+    errors: dict[str, list[float]] = field(default_factory=dict)
+    frames: dict[str, int] = field(default_factory=dict)
+    cursors: dict[str, int] = field(default_factory=dict)
+    false_cursors: int = 0
+    hold_violations: int = 0
+    gross: int = 0
+    want_cursor: int = 0  # on-screen frames with >= 2 landmarks visible
+    have_cursor: int = 0  # ... of which gave a cursor
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready figures of this video."""
+        out: dict[str, Any] = {"kind": self.kind}
+        for c in ("all4", "predicted", "off_screen"):
+            out[c] = {
+                "frames": self.frames.get(c, 0),
+                "with_cursor": self.cursors.get(c, 0),
+                **_stats(self.errors.get(c, [])),
+            }
+        out["hold_frames"] = self.frames.get("hold", 0)
+        out["hold_violations"] = self.hold_violations
+        out["false_cursors"] = self.false_cursors
+        out["gross_errors"] = self.gross
+        out["cursor_rate"] = (
+            round(self.have_cursor / self.want_cursor, 4) if self.want_cursor else None
+        )
+        out["frames_wanting_cursor"] = self.want_cursor
+        return out
+
+
+def video_errors(
+    cursors: Sequence[tuple[float, float] | None],
+    truth: Sequence[Mapping[str, Any]],
+    *,
+    kind: str,
+    screen_px: tuple[int, int] = (1920, 1080),
+) -> VideoErrors:
+    """Sort a randomized video's frames into classes and measure each cursor (px).
+
+    ``truth[i]`` as :meth:`omnidev.sim.handheld.HandheldRenderer.truth` gives it.
+    Videos of ``kind`` other than "normal" have no monitor: every cursor is false.
+    For "normal" videos, by the truth (``visible``: whole white squares in the picture,
+    ``on_screen``: the image centre's ray meets the lit area):
+
+    - ``all4``: on screen, four visible; ``predicted``: on screen, two or three visible;
+      errors are the cursor's distance from the truth (both unclamped);
+    - ``off_screen``: the camera aims past the screen's edge with two or more visible;
+      the sinks pin the cursor to the edge, so the error is between the cursor and the
+      truth both clamped to the screen;
+    - ``hold``: one or none visible: a cursor is a violation unless two landmark
+      centres are still inside the picture (a disc of a cut square can be tracked);
+      then it counts as ``predicted`` (on screen) or ``off_screen``.
+
+    ``cursor_rate``: frames with a cursor among on-screen frames with two or more
+    visible. ``gross_errors``: cursors more than :data:`GROSS_PX` off (any class).
+    """
+    if len(cursors) != len(truth):
+        raise ValueError(f"{len(cursors)} cursors for {len(truth)} truth frames")
+    out = VideoErrors(kind)
+    w, h = screen_px
+    for c, t in zip(cursors, truth, strict=True):
+        if kind != "normal" or t["screen_xy"] is None:
+            if c is not None:
+                out.false_cursors += 1
+            continue
+        nv = sum(bool(v) for v in t["visible"])
+        on = bool(t["on_screen"])
+        if nv <= 1:
+            cls = "hold"
+            if sum(bool(v) for v in t.get("centre_inside", [])) >= 2:
+                cls = "predicted" if on else "off_screen"
+            elif c is not None:
+                out.hold_violations += 1
+        elif not on:
+            cls = "off_screen"
+        else:
+            cls = "all4" if nv == 4 else "predicted"
+        out.frames[cls] = out.frames.get(cls, 0) + 1
+        if on and nv >= 2:
+            out.want_cursor += 1
+            out.have_cursor += c is not None
+        if c is None or cls == "hold":
+            continue
+        out.cursors[cls] = out.cursors.get(cls, 0) + 1
+        if cls == "off_screen":
+            a, b = _clamp01(c), _clamp01(t["screen_xy"])
+            err = cursor_error_px(a, b, screen_px)
+        else:
+            err = cursor_error_px(c, t["screen_xy"], screen_px)
+        out.errors.setdefault(cls, []).append(err)
+        out.gross += err > GROSS_PX
+    del w, h
+    return out
+
+
+def pooled_summary(
+    videos: Sequence[Mapping[str, Any]], errors: Sequence[VideoErrors]
+) -> dict[str, Any]:
+    """Pooled figures over videos: ``videos[i]`` holds ``seed`` and ``size`` (w, h),
+    ``errors[i]`` its :class:`VideoErrors` (one tracker configuration).
+
+    Cameras 640 px wide or more and 320x240 ones are reported apart; per class the
+    pooled RMS / p95 / max over all frames, the share of videos whose all-four RMS is
+    within 2 px (4 px at 320x240), the cursor rate, false cursors, hold violations and
+    the worst videos (largest all-four and predicted RMS) with their seeds.
+    """
+    groups: dict[str, list[int]] = {"640+": [], "320x240": [], "other": []}
+    for i, v in enumerate(videos):
+        wv = int(v["size"][0])
+        key = "640+" if wv >= 640 else "320x240" if wv == 320 else "other"
+        groups[key].append(i)
+    out: dict[str, Any] = {}
+    for key, idx in groups.items():
+        normal = [i for i in idx if errors[i].kind == "normal"]
+        if not idx:
+            continue
+        g: dict[str, Any] = {"videos": len(idx), "normal_videos": len(normal)}
+        bound = 2.0 if key == "640+" else 4.0
+        for c in ("all4", "predicted", "off_screen"):
+            pooled = [e for i in normal for e in errors[i].errors.get(c, [])]
+            g[c] = _stats(pooled)
+        per_video = [
+            float(np.sqrt(np.mean(np.square(errors[i].errors["all4"]))))
+            for i in normal
+            if errors[i].errors.get("all4")
+        ]
+        g["all4_video_rms_bound_px"] = bound
+        g["all4_videos_within_bound"] = (
+            round(float(np.mean(np.asarray(per_video) <= bound)), 4) if per_video else None
+        )
+        g["all4_video_rms_p50_p95_max"] = (
+            [round(float(np.percentile(per_video, q)), 3) for q in (50, 95, 100)]
+            if per_video
+            else None
+        )
+        want = sum(errors[i].want_cursor for i in normal)
+        have = sum(errors[i].have_cursor for i in normal)
+        g["cursor_rate"] = round(have / want, 4) if want else None
+        g["frames_wanting_cursor"] = want
+        g["hold_violations"] = sum(errors[i].hold_violations for i in normal)
+        g["gross_errors"] = sum(errors[i].gross for i in normal)
+        neg = [i for i in idx if errors[i].kind != "normal"]
+        g["negative_videos"] = {
+            k: sum(1 for i in neg if errors[i].kind == k) for k in ("no-monitor", "lookalikes")
+        }
+        g["false_cursors"] = {
+            k: sum(errors[i].false_cursors for i in neg if errors[i].kind == k)
+            for k in ("no-monitor", "lookalikes")
+        }
+        g["false_cursors_in_normal_videos"] = sum(errors[i].false_cursors for i in normal)
+
+        def worst(cls: str, normal: list[int] = normal) -> list[dict[str, Any]]:
+            rows = []
+            for i in normal:
+                e = errors[i].errors.get(cls)
+                if e:
+                    rows.append(
+                        {
+                            "seed": videos[i]["seed"],
+                            "size": list(videos[i]["size"]),
+                            "rms_px": round(float(np.sqrt(np.mean(np.square(e)))), 3),
+                            "max_px": round(float(np.max(e)), 3),
+                            "frames": len(e),
+                        }
+                    )
+            return sorted(rows, key=lambda r: -r["rms_px"])[:5]
+
+        g["worst_all4"] = worst("all4")
+        g["worst_predicted"] = worst("predicted")
+        low_rate = sorted(
+            (
+                {
+                    "seed": videos[i]["seed"],
+                    "cursor_rate": round(errors[i].have_cursor / errors[i].want_cursor, 3),
+                }
+                for i in normal
+                if errors[i].want_cursor
+            ),
+            key=lambda r: r["cursor_rate"],
+        )[:5]
+        g["worst_cursor_rate"] = low_rate
+        g["worst_false"] = [
+            {
+                "seed": videos[i]["seed"],
+                "kind": errors[i].kind,
+                "false_cursors": errors[i].false_cursors,
+            }
+            for i in sorted(neg, key=lambda i: -errors[i].false_cursors)[:5]
+            if errors[i].false_cursors
+        ]
+        out[key] = g
+    return out

@@ -187,3 +187,68 @@ def homography_check_opencv(corners_px: ArrayLike) -> NDArray[np.float64]:
     c = _corners(corners_px)
     Hm = cv2.getPerspectiveTransform(c.astype(np.float32), _UNIT_SQUARE.astype(np.float32))
     return np.asarray(Hm, dtype=np.float64)
+
+
+def edges_to_pixel_centres(uv: ArrayLike, screen_px: tuple[int, int]) -> NDArray[np.float64]:
+    """Normalized screen coordinates measured on the lit area's edges (0 = the left edge
+    of pixel 0, 1 = the right edge of pixel N-1, what the corners' unit square gives)
+    -> the pointer convention of :class:`omnidev.screen.ScreenMapping` (0 = the centre
+    of pixel 0, 1 = the centre of pixel N-1) for a screen of ``screen_px`` (W, H) pixels.
+
+    Example:
+        >>> edges_to_pixel_centres([0.5 / 1920, 0.5], (1920, 1080)).round(12).tolist()
+        [0.0, 0.5]
+    """
+    n = np.asarray(screen_px, np.float64)
+    return np.asarray((np.asarray(uv, np.float64) * n - 0.5) / (n - 1), np.float64)
+
+
+def rolling_shutter_correct(
+    centers: NDArray[np.float64],
+    previous: NDArray[np.float64],
+    dt_s: float,
+    readout_s: float,
+    height: int,
+    use: NDArray[np.bool_] | None = None,
+) -> NDArray[np.float64]:
+    """Landmark centres (4, 2) px brought to the instant the image's centre row was
+    read out, from a rolling shutter that reads rows top to bottom over ``readout_s``.
+
+    Row v is read at ``(v - (H - 1) / 2) / H * readout_s`` from the centre row; each
+    landmark moves back by its image velocity over that time. The velocity is its
+    move since ``previous`` (the last frame's centres, ``dt_s`` earlier, read at their
+    own rows' times); landmarks not in ``use`` (e.g. predicted ones) take the median
+    velocity of those that are. Without usable landmarks the centres are returned as
+    they are.
+    """
+    c = np.asarray(centers, np.float64)
+    p = np.asarray(previous, np.float64)
+    ok = np.ones(len(c), bool) if use is None else np.asarray(use, bool)
+    if readout_s <= 0 or dt_s <= 0 or not ok.any():
+        return c.copy()
+    rc = (height - 1) / 2
+    d_now = (c[:, 1] - rc) / height * readout_s
+    d_prev = (p[:, 1] - rc) / height * readout_s
+    vel = (c - p) / np.maximum(dt_s + d_now - d_prev, 0.25 * dt_s)[:, None]
+    vel[~ok] = np.median(vel[ok], axis=0)
+    return np.asarray(c - vel * d_now[:, None], np.float64)
+
+
+class Lens:
+    """A calibrated webcam lens (OpenCV's pinhole model with k1 k2 p1 p2 [k3 ...]):
+    camera matrix ``K`` (3x3, px), distortion ``D`` and the image size it was
+    calibrated at. :meth:`undistort` maps image pixels to the pixels of the same camera
+    without distortion (a pinhole: straight lines stay straight, so the four-corner
+    homography is exact)."""
+
+    def __init__(self, K: ArrayLike, D: ArrayLike, size: tuple[int, int] | None = None) -> None:
+        self.K = np.asarray(K, np.float64).reshape(3, 3)
+        self.D = np.asarray(D, np.float64).reshape(-1)
+        self.size = size
+
+    def undistort(self, uv: ArrayLike) -> NDArray[np.float64]:
+        """Distorted pixels (n, 2) -> undistorted pixels (n, 2) (iterative, to ~1e-9 px)."""
+        p = np.asarray(uv, np.float64).reshape(-1, 1, 2)
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
+        out = cv2.undistortPoints(p, self.K, self.D, R=None, P=self.K, criteria=crit)
+        return np.asarray(out, np.float64).reshape(-1, 2)

@@ -46,6 +46,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from omnidev.mouse.flow import PlaneFlow, apply_h, frame_homography
+
 BARS = 8
 
 
@@ -230,6 +232,8 @@ def track_circle(
     radius_steps: int = 1,
     min_contrast: float = 25.0,
     correlate: Literal["pieces", "kernel"] = "pieces",
+    streak: bool = True,
+    recentre: bool = True,
 ) -> Circle | None:
     """Find the landmark near its last position (x, y) and radius r, or None.
 
@@ -245,6 +249,12 @@ def track_circle(
             runs directly over their taps, and sums only the taps of the other
             radii at the 3 x 3 centers; ``"kernel"`` (reference) runs one
             cv2.filter2D per radius with the whole kernel.
+        streak: the centre of a motion-blurred landmark is the middle of the
+            ridge of scores along its streak (:func:`_plateau_centre`), not the
+            ridge's highest point (False: the peak, as the dissertation).
+        recentre: when that ridge runs into the side of the centres the window
+            can score (a landmark that moved about four radii since the last
+            frame), search once more in a window centred on it.
     """
     H, W = gray.shape[:2]
     half_win = math.ceil(5 * r)  # window side = five diameters
@@ -273,7 +283,32 @@ def track_circle(
         return None
     # score[i, j] is the center (reach - 1 + i, reach - 1 + j) of the window
     vy, vx = divmod(int(np.argmax(score[1:-1, 1:-1])), score.shape[1] - 2)
+    plateau = _plateau_centre(score[1:-1, 1:-1], vy, vx) if streak else None
     reach = r0 + n // 2
+    if plateau is not None:
+        vy, vx = round(plateau[0]), round(plateau[1])
+        edge = (
+            (plateau[2] and cy0 == y0)
+            or (plateau[3] and cx0 == x0)
+            or (plateau[4] and cy1 == y1)
+            or (plateau[5] and cx1 == x1)
+        )
+        if recentre and edge:
+            # the ridge runs into the window's side: look again around its middle
+            again = track_circle(
+                gray,
+                float(cx0 + vx + reach),
+                float(cy0 + vy + reach),
+                r,
+                n=n,
+                radius_steps=radius_steps,
+                min_contrast=min_contrast,
+                correlate=correlate,
+                streak=streak,
+                recentre=False,
+            )
+            if again is not None:
+                return again
     iy, ix = vy + reach, vx + reach
     rr, local = r0, score[vy : vy + 3, vx : vx + 3]
     for other in others:
@@ -291,9 +326,59 @@ def track_circle(
     contrast = float(local[1, 1]) / (BARS * (n // 2))
     if contrast < min_contrast:
         return None
-    dy = _parabola(float(local[0, 1]), float(local[1, 1]), float(local[2, 1]))
-    dx = _parabola(float(local[1, 0]), float(local[1, 1]), float(local[1, 2]))
+    if plateau is not None:
+        dy, dx = plateau[0] - vy, plateau[1] - vx
+    else:
+        dy = _parabola(float(local[0, 1]), float(local[1, 1]), float(local[2, 1]))
+        dx = _parabola(float(local[1, 0]), float(local[1, 1]), float(local[1, 2]))
     return Circle(cx0 + ix + dx, cy0 + iy + dy, float(rr), contrast)
+
+
+def _plateau_centre(
+    score: NDArray[np.float32], vy: int, vx: int, level: float = 0.8
+) -> tuple[float, float, bool, bool, bool, bool] | None:
+    """The middle (row, column, sub-pixel) of the ridge of template scores around the
+    best one (vy, vx), or None where there is no ridge.
+
+    A motion-blurred disc is a streak along which the template fits about equally
+    well: its best score lies anywhere on a ridge as long as the blur, so the peak
+    (and a parabola through it) wanders along it by px. The ridge is the centres
+    scoring ``level`` of the best or more and connected to it; where it reaches 3 px
+    or more, its centroid weighted by the score above that level is the streak's
+    middle (a sharp disc's peak is narrower: the parabola is kept there). The four
+    flags say whether the ridge touches the top, left, bottom, right side of ``score``.
+    """
+    top = float(score[vy, vx])
+    if top <= 0:
+        return None
+    thr = level * top
+    # a sharp peak (the common case) is decided without labelling: a ridge 3 px long
+    # reaches the ring two px around the peak, and a ridge has 3 high centres in its 3x3
+    b0, b1 = max(vy - 2, 0), min(vy + 3, score.shape[0])
+    a0, a1 = max(vx - 2, 0), min(vx + 3, score.shape[1])
+    ring = score[b0:b1, a0:a1] >= thr
+    ring[max(vy - 1, 0) - b0 : vy + 2 - b0, max(vx - 1, 0) - a0 : vx + 2 - a0] = False
+    if not ring.any():
+        return None
+    y0, y1 = max(vy - 1, 0), min(vy + 2, score.shape[0])
+    x0, x1 = max(vx - 1, 0), min(vx + 2, score.shape[1])
+    if int(np.count_nonzero(score[y0:y1, x0:x1] >= thr)) < 3:
+        return None
+    _, labels = cv2.connectedComponents((score >= thr).astype(np.uint8), connectivity=8)
+    ys, xs = np.nonzero(labels == labels[vy, vx])
+    if max(int(np.ptp(ys)), int(np.ptp(xs))) < 3:
+        return None
+    w = score[ys, xs].astype(np.float64) - thr
+    total = float(w.sum())
+    h, wd = score.shape
+    return (
+        float(w @ ys) / total,
+        float(w @ xs) / total,
+        int(ys.min()) == 0,
+        int(xs.min()) == 0,
+        int(ys.max()) == h - 1,
+        int(xs.max()) == wd - 1,
+    )
 
 
 def _similarity(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -421,6 +506,23 @@ def _disc_mask(R: int, radius: float) -> NDArray[np.float32]:
     return m
 
 
+def _off_plane(
+    new: NDArray[np.float64], found: list[bool], pred: NDArray[np.float64], tol: float
+) -> list[int]:
+    """Found landmarks (indices) to drop as not where the monitor plane's motion put them.
+
+    A hit farther than ``tol`` px from its prediction ``pred`` (4, 2) is taken for an
+    impostor. (Accepting hits that share one offset from a drifted prediction found
+    more landmarks again but let impostors through on the tuning seeds: refused.)
+    """
+    idx = [i for i in range(4) if found[i]]
+    dev = new - pred
+    far = [i for i in idx if float(np.hypot(*dev[i])) > tol]
+    if not far:
+        return []
+    return far
+
+
 @dataclass
 class LandmarkTracker:
     """Tracks the four landmarks (TL, TR, BR, BL) frame to frame with prediction.
@@ -453,6 +555,13 @@ class LandmarkTracker:
     radius: float = 0.0
     radii: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))
     found: list[bool] = field(default_factory=lambda: [False] * 4)
+    flow: PlaneFlow = field(default_factory=PlaneFlow)
+    flow_tol: float = 0.8
+    ref_centers: NDArray[np.float64] | None = None
+    prev_gray: NDArray[np.uint8] | None = None
+    predicted_by: str = ""
+    coast_frames: int = 60
+    coasting: int = 0
 
     def lock(self, centers: NDArray[np.float64], radius: float | NDArray[np.float64]) -> None:
         """Start tracking from the detection stage's four centers (TL, TR, BR, BL)."""
@@ -462,6 +571,8 @@ class LandmarkTracker:
         self.radius = statistics.median(self.radii.tolist())
         self.found = [True] * 4
         self.contrast = 0.0
+        self.flow.stop()
+        self.coasting = 0
 
     def _outliers(
         self, new: NDArray[np.float64], found: list[bool], guess: NDArray[np.float64]
@@ -526,20 +637,9 @@ class LandmarkTracker:
             dropped += [i for i in back if abs(a * zo[i] + b - zn[i]) > self.back_tol * tol]
         return dropped
 
-    def update(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
-        """The four centers in this frame (missing ones predicted), or None on failure.
-
-        None (three or more landmarks missing, or never locked) means: hold the
-        last cursor and run the detection stage again.
-        """
-        if self.centers is None:
-            return None
-        # Beyond the dissertation (which centres each window on the last position):
-        # centre it where the last frame-to-frame move carries the landmark, so a
-        # fast sweep does not leave the window or land on the bezel next to it.
-        guess = self.centers
-        if self.motion and self.previous is not None:
-            guess = self.centers + (self.centers - self.previous)
+    def _search(self, gray: NDArray[np.uint8], guess: NDArray[np.float64]) -> list[Circle | None]:
+        """The template's best circle in each window centred at ``guess`` (4, 2), None
+        where it falls short of the contrast floors."""
         hits = [
             track_circle(
                 gray,
@@ -554,10 +654,92 @@ class LandmarkTracker:
         # A landmark cut by the image border still half-fits the template: a hit
         # must reach a good part of the contrast the landmarks had so far.
         floor = self.relative_contrast * self.contrast
-        hits = [h if h is not None and h.contrast >= floor else None for h in hits]
+        return [h if h is not None and h.contrast >= floor else None for h in hits]
+
+    def _coast(
+        self, gray: NDArray[np.uint8], found: list[bool], new: NDArray[np.float64] | None
+    ) -> None:
+        """Fewer than two landmarks found: no cursor (the dissertation's hold). With
+        ``predict="flow"`` the four positions keep following the monitor plane's image
+        motion for up to ``coast_frames`` frames (``coasting`` counts them), so that
+        landmarks coming back are tracked where they reappear without waiting for all
+        four (the detection stage needs them all); otherwise, or when the plane's
+        features give out, the lock is lost (``coasting`` = 0)."""
+        self.found = found
+        prev = self.prev_gray
+        self.prev_gray = gray
+        if self.predict != "flow" or prev is None or self.centers is None:
+            self.coasting = 0
+            return None
+        if self.coasting >= self.coast_frames:
+            self.coasting = 0
+            return None
+        if not self.flow.active:
+            self.flow.start(prev, self.centers)
+            self.ref_centers = self.centers.copy()
+            self.flow.step(gray)
+        elif self.flow.gray is not gray:
+            self.flow.step(gray)
+        assert self.ref_centers is not None
+        idx = [i for i, ok in enumerate(found) if ok and new is not None]
+        H = self.flow.fit(self.ref_centers[idx], new[idx] if new is not None else np.zeros((0, 2)))
+        if H is None:
+            self.coasting = 0
+            return None
+        pred = apply_h(H, self.ref_centers)
+        self.previous, self.centers = self.centers, pred
+        self.flow.replenish(gray, pred)
+        self.coasting += 1
+        return None
+
+    def _plane_guess(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
+        """Where the monitor plane's frame-to-frame homography carries the last centres."""
+        assert self.prev_gray is not None and self.centers is not None
+        Hff = frame_homography(self.prev_gray, gray, self.centers)
+        return None if Hff is None else apply_h(Hff, self.centers)
+
+    def update(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
+        """The four centers in this frame (missing ones predicted), or None on failure.
+
+        None (three or more landmarks missing, or never locked) means: hold the
+        last cursor and run the detection stage again.
+        """
+        if self.centers is None:
+            return None
+        # Beyond the dissertation (which centres each window on the last position):
+        # centre it where the last frame-to-frame move carries the landmark, so a
+        # fast sweep does not leave the window or land on the bezel next to it.
+        guess = self.centers
+        if self.motion and self.previous is not None:
+            guess = self.centers + (self.centers - self.previous)
+        # Beyond it again (predict="flow"): when the hand moves fast or a landmark is
+        # missing, the monitor plane's frame-to-frame homography from tracked features
+        # places the windows (a sweep's acceleration defeats the constant-velocity guess)
+        # and judges the hits (a blurred impostor is not where the plane went).
+        plane_guess: NDArray[np.float64] | None = None
+        use_flow = self.predict == "flow" and self.prev_gray is not None
+        if use_flow:
+            assert self.prev_gray is not None
+            step = 0.0
+            if self.previous is not None:
+                step = float(np.median(np.linalg.norm(self.centers - self.previous, axis=1)))
+            if step > max(3.0, 0.5 * self.radius) or not all(self.found):
+                plane_guess = self._plane_guess(gray)
+                if plane_guess is not None:
+                    guess = plane_guess
+        hits = self._search(gray, guess)
+        if use_flow and plane_guess is None:
+            # the hits say the hand jerked (or some are missing): look again where the
+            # monitor plane went
+            jump = [h is None or math.hypot(h.x - g[0], h.y - g[1]) > max(3.0, 0.5 * self.radius)
+                    for h, g in zip(hits, guess, strict=True)]  # fmt: skip
+            if any(jump):
+                plane_guess = self._plane_guess(gray)
+                if plane_guess is not None:
+                    hits = self._search(gray, plane_guess)
         found = [h is not None for h in hits]
         if sum(found) < 2:
-            self.found = found
+            self._coast(gray, found, None)
             return None
         if self.refine:
             disc = [None] * 4 if self.disc_radii is None else list(self.disc_radii)
@@ -575,15 +757,64 @@ class LandmarkTracker:
         for i, h in enumerate(hits):
             if h is not None:
                 new[i] = (h.x, h.y)
+        if plane_guess is not None:
+            moved = float(np.median(np.linalg.norm(plane_guess - self.centers, axis=1)))
+            tol = max(5.0, self.flow_tol * self.radius) + 0.1 * moved
+            for i in _off_plane(new, found, plane_guess, tol):
+                found[i], hits[i], new[i] = False, None, self.centers[i]
+            if sum(found) < 2:
+                self._coast(gray, found, new)
+                return None
         if self.consistency:
             for i in self._outliers(new, found, guess):
                 found[i], hits[i], new[i] = False, None, self.centers[i]
+        if self.predict == "flow" and self.flow.active and self.ref_centers is not None:
+            # the monitor plane's own motion judges the landmarks found: one that is
+            # not where the plane carried it (a blurred impostor) is dropped
+            self.flow.step(gray)
+            Hf = self.flow.fit(np.zeros((0, 2)), np.zeros((0, 2)))
+            if Hf is not None:
+                pred = apply_h(Hf, self.ref_centers)
+                moved = float(np.median(np.linalg.norm(pred - self.centers, axis=1)))
+                tol = max(5.0, self.flow_tol * self.radius) + 0.1 * moved
+                for i in _off_plane(new, found, pred, tol):
+                    found[i], hits[i], new[i] = False, None, self.centers[i]
+                if sum(found) < 2:
+                    self._coast(gray, found, new)
+                    return None
         moves = [
             (h.x - self.centers[i, 0], h.y - self.centers[i, 1])
             for i, h in enumerate(hits)
             if h is not None
         ]
         missing = [i for i, ok in enumerate(found) if not ok]
+        self.predicted_by = ""
+        if missing and self.predict == "flow":
+            # the homography of the monitor plane from the reference frame (the last
+            # one before a landmark went missing), fitted to tracked features and the
+            # landmarks still found, carries the missing ones
+            if not self.flow.active and self.prev_gray is not None:
+                self.flow.start(self.prev_gray, self.centers)
+                self.ref_centers = self.centers.copy()
+                self.flow.step(gray)
+            if self.flow.active and self.ref_centers is not None:
+                idx = [i for i, ok in enumerate(found) if ok]
+                H = self.flow.fit(self.ref_centers[idx], new[idx])
+                if H is not None:
+                    new[missing] = apply_h(H, self.ref_centers[missing])
+                    self.flow.replenish(gray, new)
+                    missing = []
+                    self.predicted_by = "flow"
+            if missing and self.focal_px:  # too few features: the camera's turn
+                idx = [i for i, ok in enumerate(found) if ok]
+                R = rotation_between(self.centers[idx], new[idx], self.focal_px, self.principal)
+                new[missing] = rotate_points(
+                    self.centers[missing], R, self.focal_px, self.principal
+                )
+                missing = []
+                self.predicted_by = "rotation"
+        elif self.predict == "flow":
+            self.flow.stop()
         if missing and self.predict == "similarity":
             # rotation, scale and shift of the found landmarks since the last frame
             # (exact for motion parallel to the screen), applied to the missing ones
@@ -624,4 +855,6 @@ class LandmarkTracker:
         )
         self.previous, self.centers = self.centers, new
         self.found = found
+        self.prev_gray = gray
+        self.coasting = 0
         return new.copy()

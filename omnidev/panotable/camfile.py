@@ -32,6 +32,7 @@ from omnidev.calibfile import open_storage, read_mat, read_real, read_string, wr
 from omnidev.camera import INVALID, BoolArray, FloatArray, Maps
 from omnidev.errors import CalibrationError
 from omnidev.panotable.general import table_angles
+from omnidev.panotable.maps import view_maps as block_view_maps
 from omnidev.panotable.table import (
     LOOKUPS,
     Calibration,
@@ -181,25 +182,36 @@ def load_table(path: Path) -> PanoTable:
             raise CalibrationError(f"{path}: {exc}") from None
     if table is not None:
         return model.with_table(table)
-    model.padded  # noqa: B018  (rebuild the table now: Algorithm 2)
-    return model
+    return model  # the entries are filled from the mapping when a lookup needs them
 
 
 @dataclass(frozen=True)
 class PanoTableCamera:
     """A camera described by a pano-mapping table (a :class:`omnidev.camera.CameraModel`).
 
-    ``lookup`` selects how view directions find their pixel: "bilinear"
-    (default), the dissertation's "nearest" entry, or "analytic".
+    ``lookup`` selects how view directions find their pixel: "bilinear", the
+    dissertation's "nearest" entry, or "analytic" (the table's mapping itself).
+    None (the default) takes "analytic" for a table defined by its mapping (a
+    format-2 file: its bilinear lookup differs from the mapping by the
+    interpolation error of a table of about one entry per pixel, under 1e-3 px,
+    and costs building the table) and "bilinear" for a table whose entries were
+    given (format 1, or ``store_table=True``).
     """
 
     table: PanoTable
-    lookup: Lookup = "bilinear"
+    lookup: Lookup | None = None
     kind: str = KIND
 
     @property
     def image_size(self) -> tuple[int, int]:
         return self.table.image_size
+
+    @property
+    def resolved_lookup(self) -> Lookup:
+        """The lookup used: ``lookup``, or the default for this table (see the class)."""
+        if self.lookup is not None:
+            return self.lookup
+        return "bilinear" if self.table.stored_entries else "analytic"
 
     def default_elevation_deg(self) -> tuple[float, float]:
         """The table's elevation range; with a tilt, the band seen at every world azimuth."""
@@ -212,47 +224,22 @@ class PanoTableCamera:
     def project(self, points: FloatArray, *, finite: bool) -> tuple[FloatArray, BoolArray]:
         """Pixels of camera-frame points; only their direction from O_m matters (SVP model)."""
         theta, rho = table_angles(np.asarray(points, np.float64), self.table.tilt)
-        return self.table.lookup(theta, rho, method=self.lookup)
+        return self.table.lookup(theta, rho, method=self.resolved_lookup)
 
     def view_maps(self, view: View) -> Maps:
-        """Maps for ``view`` in row blocks, at most about 32 bytes per output pixel at peak.
+        """Maps for ``view`` in row blocks, without the view's 3-D points (about 10-16 bytes
+        per output pixel at peak; :mod:`omnidev.panotable.maps`).
 
-        A panorama of an untilted table goes straight from its column azimuths
-        and row elevations to the table (no 3-D points); every other view goes
-        through its points.
+        A panorama of an untilted table read through the table's entries goes
+        from its column azimuths and row elevations straight to the entries
+        (:func:`grid_maps`).
         """
         band = self.default_elevation_deg()
-        if isinstance(view, Panorama):
+        lookup = self.resolved_lookup
+        if isinstance(view, Panorama) and lookup != "analytic" and self.table.tilt == (0.0, 0.0):
             theta, rho = view.angles(band)
-            if self.table.tilt == (0.0, 0.0):
-                return grid_maps(self.table, theta, rho, self.lookup)
-            maps = _empty_maps(rho.size, theta.size, self.image_size)
-            block = max(1, BLOCK_PIXELS // theta.size)
-            ct, st = np.cos(theta), np.sin(theta)
-            for r0 in range(0, rho.size, block):
-                rr = rho[r0 : r0 + block, None]
-                d = np.stack(
-                    [
-                        np.cos(rr) * ct,
-                        np.cos(rr) * st,
-                        np.broadcast_to(np.sin(rr), (rr.size, theta.size)),
-                    ],
-                    -1,
-                )
-                self._store_points(maps, r0, d)
-            return maps
-        pts = view.points(band)
-        H, W = pts.shape[:2]
-        maps = _empty_maps(H, W, self.image_size)
-        block = max(1, BLOCK_PIXELS // W)
-        for r0 in range(0, H, block):
-            self._store_points(maps, r0, pts[r0 : r0 + block])
-        return maps
-
-    def _store_points(self, maps: Maps, r0: int, pts: FloatArray) -> None:
-        theta, rho = table_angles(pts, self.table.tilt)
-        uv, ok = self.table.lookup(theta, rho, method=self.lookup)
-        _store(maps, r0, uv[..., 0], uv[..., 1], ok)
+            return grid_maps(self.table, theta, rho, lookup)
+        return block_view_maps(self.table, view, lookup, band)
 
 
 BLOCK_PIXELS = 1 << 16
@@ -335,8 +322,8 @@ def camera_from_file(path: Path, options: Mapping[str, str]) -> PanoTableCamera:
     unknown = sorted(set(options) - {"lookup"})
     if unknown:
         raise CalibrationError(f"pano-table has no option {unknown[0]!r} (options: lookup)")
-    lookup = options.get("lookup", "bilinear")
-    if lookup not in LOOKUPS:
+    lookup = options.get("lookup")
+    if lookup is not None and lookup not in LOOKUPS:
         raise CalibrationError(
             f"pano-table option lookup={lookup!r}: choose one of {', '.join(LOOKUPS)}"
         )

@@ -189,6 +189,7 @@ class PanoTable:
     harmonics: FloatArray | None = None
     rho_norm: tuple[float, float] = (0.0, 1.0)
     _table: NDArray[np.float32] | None = field(default=None, repr=False, compare=False)
+    _stored: bool = field(default=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.M < 4 or self.N < 2:
@@ -267,9 +268,16 @@ class PanoTable:
         return self.padded[: self.N, : self.M]
 
     @property
+    def stored_entries(self) -> bool:
+        """True when the entries were given (read from a file), not filled from the mapping."""
+        return self._stored
+
+    @property
     def padded(self) -> NDArray[np.float32]:
         """(N + 1, M + 1, 2) float32: the table with column 0 repeated after column M - 1
-        (azimuth wraps) and a row N extrapolated linearly from rows N - 2 and N - 1."""
+        (azimuth wraps) and a row N extrapolated linearly from rows N - 2 and N - 1.
+
+        Filled from the mapping on first use (Algorithm 2) and kept."""
         if self._table is None:
             out = np.empty((self.N + 1, self.M + 1, 2), np.float32)
             self.mapping.fill_grid(self.thetas, self.rhos, out)
@@ -292,6 +300,7 @@ class PanoTable:
             )
         obj = dataclasses.replace(self, _table=None)
         object.__setattr__(obj, "_table", _pad(np.asarray(table, np.float32)))
+        object.__setattr__(obj, "_stored", True)
         return obj
 
     def lookup(

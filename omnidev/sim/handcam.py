@@ -8,9 +8,11 @@ camera centre ``C`` in world coordinates and ``R`` mapping world directions to
 camera directions: ``X_cam = R @ (X_world - C)``.
 
 Pixels: the centre of the top-left pixel is (0, 0); u to the right, v down.
-Distortion is the radial part of OpenCV's model on normalized coordinates
-(x, y) = (X/Z, Y/Z): ``x_d = x (1 + k1 r^2 + k2 r^4)`` with ``r^2 = x^2 + y^2``,
-then ``u = fx x_d + cx``, ``v = fy y_d + cy``.
+Distortion is OpenCV's model on normalized coordinates (x, y) = (X/Z, Y/Z):
+``x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2)``,
+``y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y`` with
+``r^2 = x^2 + y^2``, then ``u = fx x_d + cx``, ``v = fy y_d + cy`` (the fixtures'
+cameras use k1 and k2 only).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class HandCamera:
-    """Intrinsics (px) and radial distortion (k1, k2) of the hand-held camera."""
+    """Intrinsics (px) and distortion (OpenCV's k1, k2, p1, p2, k3) of the hand-held camera."""
 
     width: int
     height: int
@@ -36,6 +38,9 @@ class HandCamera:
     cy: float
     k1: float = -0.12
     k2: float = 0.02
+    p1: float = 0.0
+    p2: float = 0.0
+    k3: float = 0.0
 
     @classmethod
     def default(cls, width: int = 640, height: int = 480) -> HandCamera:
@@ -52,31 +57,59 @@ class HandCamera:
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     def distortion(self) -> FloatArray:
-        """OpenCV's distortion vector (k1, k2, p1, p2, k3) = (k1, k2, 0, 0, 0)."""
-        return np.array([self.k1, self.k2, 0.0, 0.0, 0.0])
+        """OpenCV's distortion vector (k1, k2, p1, p2, k3)."""
+        return np.array([self.k1, self.k2, self.p1, self.p2, self.k3])
+
+    def _radial(self, r2: FloatArray) -> FloatArray:
+        out: FloatArray = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        return out
+
+    def _tangential(self, xy: FloatArray) -> FloatArray:
+        x, y = xy[..., 0], xy[..., 1]
+        r2 = x * x + y * y
+        return np.stack(
+            [
+                2 * self.p1 * x * y + self.p2 * (r2 + 2 * x * x),
+                self.p1 * (r2 + 2 * y * y) + 2 * self.p2 * x * y,
+            ],
+            -1,
+        )
 
     def distort_normalized(self, xy: FloatArray) -> FloatArray:
         """Distort normalized coordinates (..., 2) -> distorted normalized (..., 2)."""
         r2 = np.sum(xy * xy, axis=-1, keepdims=True)
-        out: FloatArray = xy * (1.0 + self.k1 * r2 + self.k2 * r2 * r2)
+        out: FloatArray = xy * self._radial(r2)
+        if self.p1 or self.p2:
+            out = out + self._tangential(xy)
         return out
 
-    def undistort_normalized(self, xy_d: FloatArray) -> FloatArray:
-        """Exact inverse of :meth:`distort_normalized` (Newton on the radius, ~1e-14).
-
-        The radial polynomial r (1 + k1 r^2 + k2 r^4) is increasing for the
-        default coefficients, so the inverse is unique.
-        """
+    def _undistort_radial(self, xy_d: FloatArray) -> FloatArray:
         rd = np.sqrt(np.sum(xy_d * xy_d, axis=-1))
         r = rd.copy()
+        k1, k2, k3 = self.k1, self.k2, self.k3
         for _ in range(20):
             r2 = r * r
-            f = r * (1.0 + self.k1 * r2 + self.k2 * r2 * r2) - rd
-            df = 1.0 + 3.0 * self.k1 * r2 + 5.0 * self.k2 * r2 * r2
+            f = r * self._radial(r2) - rd
+            df = 1.0 + r2 * (3.0 * k1 + r2 * (5.0 * k2 + 7.0 * k3 * r2))
             r = r - f / df
         scale = np.where(rd > 0, r / np.where(rd > 0, rd, 1.0), 1.0)
         out: FloatArray = xy_d * scale[..., None]
         return out
+
+    def undistort_normalized(self, xy_d: FloatArray) -> FloatArray:
+        """Inverse of :meth:`distort_normalized`: Newton on the radius (~1e-14), and for
+        the tangential terms a fixed-point iteration around it (~1e-12 for |p| <= 0.005).
+
+        The radial polynomial r (1 + k1 r^2 + k2 r^4 + k3 r^6) must be increasing over
+        the picture (the default coefficients and those of omnidev.sim.handheld are),
+        so the inverse is unique.
+        """
+        if not (self.p1 or self.p2):
+            return self._undistort_radial(xy_d)
+        xy = self._undistort_radial(xy_d)
+        for _ in range(12):
+            xy = self._undistort_radial(xy_d - self._tangential(xy))
+        return xy
 
     def pixel_to_normalized(self, uv: FloatArray) -> FloatArray:
         """Pixels (..., 2) -> undistorted normalized coordinates (..., 2)."""

@@ -21,11 +21,24 @@ Calibration file: the landmark layout (JSON or TOML with the keys of
 offsets from the screen corners, circle and square sizes, all in mm).
 
 Options: ``method`` ("homography", default, or the dissertation's "affine");
-``predict`` ("rotation", default: the camera turning about its center, fitted to
-the landmarks found; "similarity"; or the dissertation's "translation");
+``predict`` ("rotation", default; "flow": the monitor plane's homography from a reference
+frame, fitted to features tracked on the monitor and the landmarks found, see
+:mod:`omnidev.mouse.flow`; with it the same image motion places the tracking
+windows and rejects hits off the plane's motion during fast moves, and the
+landmarks keep following it for up to 2 s while fewer than two are found;
+"rotation": the camera turning about its center, fitted to the landmarks found
+(flow's fallback);
+"similarity"; or the dissertation's "translation");
 ``fov_deg`` (the webcam's horizontal field of view for "rotation", default 60);
 ``redetect_every`` (frames, default 5; 0 turns re-detection while predicting
-off).
+off); ``camera``: the webcam's calibration (an OpenCV file with ``camera_matrix`` and
+``distortion_coefficients``, as cv2.calibrateCamera tools write it, or ``K`` and ``D``):
+the landmark centres and the image centre are undistorted before the homography, which
+removes the lens's share of the error (docs/camera-mouse.md); ``readout_ms``: the
+sensor's rolling-shutter readout time (rows top to bottom; default 0, a global shutter):
+each landmark is brought back to the centre row's instant by its image velocity;
+``screen_px`` ("WxH", default 1920x1080): the target screen's pixels, for the pointer's
+pixel-centre convention (0 and 1 are the centres of the first and last pixel).
 """
 
 from __future__ import annotations
@@ -43,11 +56,18 @@ from numpy.typing import NDArray
 from omnidev import Frame, PointerSample
 from omnidev.errors import ConfigError, TrackerError
 from omnidev.mouse.detect import detect_landmarks, to_gray
-from omnidev.mouse.geometry import cursor_from_corners, image_center, screen_corners_from_landmarks
+from omnidev.mouse.geometry import (
+    Lens,
+    cursor_from_corners,
+    edges_to_pixel_centres,
+    image_center,
+    rolling_shutter_correct,
+    screen_corners_from_landmarks,
+)
 from omnidev.mouse.landmarks import LandmarkLayout
 from omnidev.mouse.track import LandmarkTracker
 
-PREDICTIONS = ("rotation", "similarity", "translation")
+PREDICTIONS = ("flow", "rotation", "similarity", "translation")
 
 
 class CameraMouse:
@@ -60,6 +80,10 @@ class CameraMouse:
         predict: str = "rotation",
         redetect_every: int = 5,
         fov_deg: float = 60.0,
+        *,
+        lens: Lens | None = None,
+        readout_ms: float = 0.0,
+        screen_px: tuple[int, int] = (1920, 1080),
     ) -> None:
         if method not in ("homography", "affine"):
             raise TrackerError(f"camera-mouse: method must be homography or affine, got {method!r}")
@@ -75,6 +99,14 @@ class CameraMouse:
         self.method = method
         self.redetect_every = redetect_every
         self.fov_deg = fov_deg
+        if not 0.0 <= readout_ms <= 200.0:
+            raise TrackerError(f"camera-mouse: readout_ms must be 0..200 ms, got {readout_ms}")
+        if min(screen_px) < 2:
+            raise TrackerError(f"camera-mouse: screen_px must be at least 2x2, got {screen_px}")
+        self.lens = lens
+        self.readout_s = readout_ms / 1000.0
+        self.screen_px = screen_px
+        self._prev: tuple[NDArray[np.float64], int, NDArray[np.bool_]] | None = None
         self.tracker = LandmarkTracker(predict=predict)
         self.locked = False
         self.size: tuple[int, int] | None = None
@@ -94,11 +126,25 @@ class CameraMouse:
         return radii
 
     def track(self, frame: Frame) -> PointerSample | None:
+        sample = self._track(frame)
+        if sample is None:
+            self._prev = None
+        return sample
+
+    def _track(self, frame: Frame) -> PointerSample | None:
         h, w = frame.image.shape[:2]
         if self.size is None:
             self.size = (w, h)
             self.tracker.focal_px = (w / 2) / math.tan(math.radians(self.fov_deg) / 2)
             self.tracker.principal = ((w - 1) / 2, (h - 1) / 2)
+            if self.lens is not None:
+                if self.lens.size is not None and self.lens.size != (w, h):
+                    raise TrackerError(
+                        f"camera-mouse: frame {frame.index} is {w}x{h}, the camera "
+                        f"calibration is for {self.lens.size[0]}x{self.lens.size[1]}"
+                    )
+                self.tracker.focal_px = float(self.lens.K[0, 0])
+                self.tracker.principal = (float(self.lens.K[0, 2]), float(self.lens.K[1, 2]))
         elif self.size != (w, h):
             raise TrackerError(
                 f"camera-mouse: frame {frame.index} is {w}x{h}, the stream was "
@@ -110,6 +156,16 @@ class CameraMouse:
             last = self.tracker.centers
             centers = self.tracker.update(gray)
             if centers is None:
+                if self.tracker.coasting:
+                    # held; the landmarks follow the monitor's image motion, and the
+                    # detection stage looks for all four on every such frame
+                    if self.redetect_every:
+                        det = detect_landmarks(frame.image, self.layout)
+                        if det is not None:
+                            self.tracker.lock(det.centers, self._radius_px(det.centers))
+                            self.relocks += 1
+                            return self._sample(frame, det.centers, w, h)
+                    return None
                 self.locked = False  # three or more missing: detect again next frame
                 return None
             if not _plausible(centers, last, self.tracker.radius):
@@ -135,12 +191,32 @@ class CameraMouse:
             self.locked = True
             self._weak = 0
         assert centers is not None
+        return self._sample(frame, centers, w, h)
+
+    def _sample(
+        self, frame: Frame, centers: NDArray[np.float64], w: int, h: int
+    ) -> PointerSample | None:
+        """The cursor sample of the landmark centres (TL, TR, BR, BL, px) of ``frame``."""
         # the discs' radii from the landmark geometry, for next frame's sub-pixel step
         self.tracker.disc_radii = self._radius_px(centers)
-        corners = screen_corners_from_landmarks(centers, self.layout)
-        uv = cursor_from_corners(corners, image_center(w, h), method=self.method)  # type: ignore[arg-type]
+        found = np.array(self.tracker.found, bool)
+        pts = np.asarray(centers, np.float64)
+        if self.readout_s > 0 and self._prev is not None:
+            prev, prev_ns, prev_found = self._prev
+            dt = (frame.timestamp_ns - prev_ns) / 1e9
+            if not 0.001 <= dt <= 0.5:  # no usable capture times: assume 30 fps
+                dt = 1 / 30
+            pts = rolling_shutter_correct(pts, prev, dt, self.readout_s, h, found & prev_found)
+        self._prev = (np.asarray(centers, np.float64).copy(), frame.timestamp_ns, found)
+        centre = image_center(w, h)
+        if self.lens is not None:
+            pts = self.lens.undistort(pts)
+            centre = self.lens.undistort(centre[None])[0]
+        corners = screen_corners_from_landmarks(pts, self.layout)
+        uv = cursor_from_corners(corners, centre, method=self.method)  # type: ignore[arg-type]
         if not np.all(np.isfinite(uv)):
             return None
+        uv = edges_to_pixel_centres(uv, self.screen_px)
         return PointerSample(
             float(uv[0]),
             float(uv[1]),
@@ -150,6 +226,7 @@ class CameraMouse:
 
     def reset(self) -> None:
         self.locked = False
+        self._prev = None
         self.size = None
         self._weak = 0
 
@@ -196,12 +273,21 @@ def load_layout(path: Path) -> LandmarkLayout:
 
 def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> CameraMouse:
     """Entry point: the calibration is the landmark layout file; option ``method``."""
-    unknown = set(options) - {"method", "predict", "redetect_every", "fov_deg"}
+    known = {"method", "predict", "redetect_every", "fov_deg", "camera", "readout_ms", "screen_px"}
+    unknown = set(options) - known
     if unknown:
         raise TrackerError(
             f"camera-mouse: unknown option {sorted(unknown)[0]!r} "
-            "(options: method, predict, fov_deg, redetect_every)"
+            f"(options: {', '.join(sorted(known))})"
         )
+    try:
+        readout = float(options.get("readout_ms", 0.0))
+    except (TypeError, ValueError):
+        raise TrackerError(
+            f"camera-mouse: readout_ms must be a number of ms, got {options['readout_ms']!r}"
+        ) from None
+    screen_px = _screen_px(options.get("screen_px", "1920x1080"))
+    lens = None if options.get("camera") in (None, "") else load_lens(Path(str(options["camera"])))
     try:
         fov = float(options.get("fov_deg", 60.0))
     except (TypeError, ValueError):
@@ -226,4 +312,50 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> Camera
         str(options.get("predict", "rotation")),
         redetect,
         fov,
+        lens=lens,
+        readout_ms=readout,
+        screen_px=screen_px,
     )
+
+
+def _screen_px(value: Any) -> tuple[int, int]:
+    """``screen_px`` as "WxH" or [W, H] -> (W, H); a clear error otherwise."""
+    try:
+        w, h = (int(v) for v in (value.lower().split("x") if isinstance(value, str) else value))
+    except (TypeError, ValueError, AttributeError):
+        raise TrackerError(
+            f"camera-mouse: screen_px must be WxH pixels (e.g. 1920x1080), got {value!r}"
+        ) from None
+    return w, h
+
+
+def load_lens(path: Path) -> Lens:
+    """The webcam calibration of an OpenCV file (YAML, XML or JSON): ``camera_matrix`` (or
+    ``K``), ``distortion_coefficients`` (or ``D``), optional ``image_width`` and
+    ``image_height``; errors name the file and key."""
+    from omnidev.calibfile import open_storage, read_mat
+    from omnidev.errors import CalibrationError
+
+    try:
+        with open_storage(path) as fs:
+            mats = {}
+            for want in (("camera_matrix", "K"), ("distortion_coefficients", "D")):
+                key = next((k for k in want if not fs.getNode(k).empty()), None)
+                if key is None:
+                    raise CalibrationError(f"{path}: missing key {want[0]!r} (or {want[1]!r})")
+                mats[want[0]] = (key, read_mat(fs, path, key))
+            size = None
+            wn, hn = fs.getNode("image_width"), fs.getNode("image_height")
+            if not wn.empty() and not hn.empty():
+                size = (int(wn.real()), int(hn.real()))
+    except CalibrationError as exc:
+        raise TrackerError(f"camera-mouse: {exc}") from None
+    kkey, K = mats["camera_matrix"]
+    dkey, D = mats["distortion_coefficients"]
+    if K.shape != (3, 3):
+        raise TrackerError(f"camera-mouse: {path}: key {kkey!r} is not a 3x3 camera matrix")
+    if D.size not in (4, 5, 8, 12, 14):
+        raise TrackerError(
+            f"camera-mouse: {path}: key {dkey!r} must hold 4, 5, 8, 12 or 14 coefficients"
+        )
+    return Lens(K, D, size)

@@ -1,0 +1,158 @@
+"""Randomized hand-held camera-mouse videos (omnidev.sim.handheld) and a small sample of
+``omnidev eval mouse`` with real assertions (issue 13).
+
+The sample's seeds are from the tuning range (0-59); the figures reported for the issue
+come from seeds 10000 and up, never looked at while tuning (docs/camera-mouse.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from omnidev.evaluation.framework import evaluate, load_task
+from omnidev.mouse.detect import detect_landmarks, rigid_plane_error
+from omnidev.mouse.evaluate import cursor_error_px
+from omnidev.mouse.geometry import (
+    cursor_homography,
+    homography_from_4_points,
+    image_center,
+    screen_corners_from_landmarks,
+)
+from omnidev.sim.handheld import KINDS, HandheldRenderer, draw_video, write_video
+
+
+def test_draws_cover_the_ranges_of_the_issue():
+    """200 draws: every kind and resolution, roll to 30 degrees, 45 degrees off-axis,
+    blur bounds up to 25 px, excursions, rolling and global shutters."""
+    vids = [draw_video(s, frames=300) for s in range(200)]
+    assert {v.kind for v in vids} == set(KINDS)
+    sizes = {(v.camera.width, v.camera.height) for v in vids}
+    assert (320, 240) in sizes and (1280, 720) in sizes and (640, 480) in sizes
+    assert max(abs(float(r)) for v in vids for r in v.path.roll) > 25.0
+    assert max(v.max_blur_px for v in vids) > 24.0
+    assert any(k == "excursion" for v in vids for _, k in v.path.segments)
+    shutters = {v.imaging.readout_s > 0 for v in vids}
+    assert shutters == {True, False}
+    # obliqueness: the camera's offset from the screen normal through the screen centre
+    off = []
+    for v in vids:
+        c = np.array([v.layout.screen_width_mm / 2000, v.layout.screen_height_mm / 2000, 0])
+        d = v.path.cam - c
+        off.append(np.degrees(np.arccos(np.abs(d[:, 2]) / np.linalg.norm(d, axis=1))).max())
+    assert max(off) > 40.0
+    assert {v.monitor.content_kind for v in vids if v.monitor is not None} >= {
+        "desktop", "document", "dark", "slide", "photo", "saturated", "video",
+    }  # fmt: skip
+
+
+def test_truth_is_exact_for_a_pinhole_global_shutter_camera():
+    """With distortion and rolling shutter turned off, the homography of the truth's
+    landmark positions puts the image centre on the truth's screen point (< 0.6 px:
+    the truth counts screen pixel centres, the corners' unit square their edges)."""
+    v = draw_video(6, frames=60)
+    cam = dataclasses.replace(v.camera, k1=0.0, k2=0.0, k3=0.0, p1=0.0, p2=0.0)
+    v = dataclasses.replace(v, camera=cam, imaging=dataclasses.replace(v.imaging, readout_s=0.0))
+    r = HandheldRenderer(v)
+    errs = []
+    for i in range(0, 60, 2):
+        t = r.truth(i)
+        if sum(t["visible"]) < 4 or not t["on_screen"]:
+            continue
+        uv = np.array(t["landmarks_uv"])
+        c = cursor_homography(
+            screen_corners_from_landmarks(uv, v.layout), image_center(cam.width, cam.height)
+        )
+        errs.append(cursor_error_px(c, t["screen_xy"]))
+    assert len(errs) >= 6
+    assert max(errs) < 0.6
+
+
+def test_rendered_landmarks_sit_where_the_truth_puts_them():
+    """Detection on a still first frame finds every disc within 0.4 px of the truth."""
+    v = draw_video(6, frames=30)
+    r = HandheldRenderer(v)
+    img, t = r.render(0), r.truth(0)
+    det = detect_landmarks(img, v.layout)
+    assert det is not None
+    d = np.linalg.norm(det.centers - np.array(t["landmarks_uv"]), axis=1)
+    print(f"\nseed 6 frame 0: detection vs truth {np.round(d, 3).tolist()} px")
+    assert d.max() < 0.4
+
+
+def test_rigid_plane_check_rejects_a_square_quad_for_a_wide_layout():
+    """A 40x40 px quad (a text window's corners) is no view of a 16:9 layout under any
+    focal length of 30-120 degrees; a perspective view of the layout is."""
+    v = draw_video(6, frames=30)
+    lay = v.layout
+    w, h = v.camera.width, v.camera.height
+    centre = np.array([(w - 1) / 2, (h - 1) / 2])
+    frange = (w / 2 / math.tan(math.radians(60)), w / 2 / math.tan(math.radians(15)))
+    square = np.array([[300.0, 200.0], [340.0, 200.0], [340.0, 240.0], [300.0, 240.0]])
+    bad, _ = rigid_plane_error(homography_from_4_points(lay.landmark_centers_mm(), square),
+                               centre, frange)  # fmt: skip
+    r = HandheldRenderer(v)
+    good_uv = np.array(r.truth(10)["landmarks_uv"])
+    good, f = rigid_plane_error(homography_from_4_points(lay.landmark_centers_mm(), good_uv),
+                                centre, frange)  # fmt: skip
+    print(f"\nrigid-plane error: square quad {bad:.3f}, true view {good:.4f} (f {f:.0f} px)")
+    assert bad > 0.3
+    assert good < 0.05
+
+
+def test_write_video_gives_a_fixture_folder(tmp_path):
+    out = tmp_path / "v"
+    doc = write_video(47, out, frames=4)
+    assert (out / "mouse.avi").stat().st_size > 0
+    assert json.loads((out / "landmarks.json").read_text())["circle_diameter_mm"] > 0
+    assert len(doc["per_frame"]) == 4 and doc["video"]["seed"] == 47
+
+
+@pytest.fixture(scope="module")
+def sample():
+    """``omnidev eval mouse`` on seeds 45-49 (tuning range), 60 frames each."""
+    task = load_task("mouse")
+    opts = {"frames": 60, "configs": "default,calibrated,translation"}
+    return evaluate(task, scenes=5, seed=45, options=opts, progress=False)
+
+
+def test_eval_sample_no_false_cursors_and_accurate_cursors(sample):
+    """Seeds 45, 47 (look-alike cards, 47 with four on a layout-shaped rectangle: it
+    once locked) and 48 (no monitor) give no cursor; 46 and 49 (monitors at 640x480
+    and 1280x720) give cursors on nearly every on-screen frame, within bounds."""
+    per = {r["seed"]: r for r in sample["per_scene"]}
+    assert sample["pooled"]["errors"] == 0
+    for s in (45, 47, 48):
+        assert per[s]["classes"]["kind"] in ("lookalikes", "no-monitor")
+        assert per[s]["counts"]["false_cursors"] == 0
+    for s in (46, 49):
+        m = per[s]["metrics"]
+        print(f"\nseed {s}: {per[s]['classes']}, all-four RMS {m.get('all4.rms')}, "
+              f"cursor rate {m.get('cursor_rate')}")  # fmt: skip
+        assert per[s]["classes"]["kind"] == "normal"
+        assert m["cursor_rate"] >= 0.9
+        # the default tracker knows neither lens nor rolling shutter (measured 2.51 and
+        # 2.08 px); given the video camera's calibration and readout time, 0.89 and 0.54
+        assert m["all4.rms"] <= 3.0
+        assert m["calibrated.all4.rms"] <= 2.0
+        assert m["calibrated.cursor_rate"] >= 0.9
+        assert per[s]["counts"]["gross_errors"] == 0
+    summary = sample["summary"]
+    names = {a["name"]: a for a in summary["acceptance"]}
+    assert names["cursors on videos with look-alikes only"]["passed"]
+    assert "translation" in summary["configs (same frames)"]
+
+
+def test_slide_content_on_a_small_screen_texture():
+    """A slide on a texture under 200 px (a small screen far away: held-out seed 20014
+    crashed in screen_content's slide) is drawn larger and scaled down."""
+    from omnidev.sim.handheld_textures import screen_content
+
+    for seed in range(64):  # every slide kind, the photo (which needs 200 px) among them
+        c = screen_content(np.random.default_rng(seed), 300, 150, kind="slide")
+        assert c.base.shape == (150, 300, 3)
+        assert float(c.base.std()) > 0.02  # content (linear 0-1), not a blank
