@@ -7,8 +7,9 @@ harmonics (``gen_*``), both learned from exact landmarks of a rendered SVP mirro
 
 Figures:
 - file_bytes: size of the table file (format 2: the table's definition).
-- load_ms: ``omnidev.load_camera`` of the file (one parse, table rebuilt).
-- build_ms: ``omnidev.build_maps`` for the panorama (the fast grid path).
+- load_ms: ``omnidev.load_camera`` of the file (one parse of the table's definition).
+- build_ms: ``omnidev.build_maps`` for the panorama (the table's mapping at the
+  view's rays, :mod:`omnidev.panotable.maps`).
 - load_plus_build_ms: what a user waits before the first frame.
 - build_peak_bytes_per_px: peak memory allocated while building the maps
   (tracemalloc, numpy's allocations included), per output pixel.

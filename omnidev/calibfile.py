@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import gzip
 import re
+import zlib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -22,6 +23,7 @@ from omnidev import registry
 from omnidev.atomic import atomic_path
 from omnidev.camera import CameraModel
 from omnidev.errors import CalibrationError
+from omnidev.inputfile import check_nesting, read_bytes, read_gzip
 
 UNWARPERS = "omnidev.unwarpers"
 
@@ -30,8 +32,18 @@ UNWARPERS = "omnidev.unwarpers"
 def open_storage(path: Path) -> Iterator[cv2.FileStorage]:
     """Open a FileStorage for reading; a clear error for a missing or unparsable file."""
     path = Path(path)
-    if not path.is_file():
-        raise CalibrationError(f"{path}: calibration file not found")
+    what = "calibration file"
+    if path.name.lower().endswith(".gz"):
+        data = read_gzip(path, what, error=CalibrationError)
+    else:
+        data = read_bytes(path, what, error=CalibrationError)  # a regular file, not huge
+    nul = data.find(b"\0")
+    if nul >= 0:  # cv2.FileStorage would stop reading there and take the rest as absent
+        line = data.count(b"\n", 0, nul) + 1
+        raise CalibrationError(f"{path}: line {line}: a NUL byte; not a {what} (a binary file?)")
+    text = data.decode("latin-1")
+    check_nesting(text, path, what, CalibrationError)
+    _check_matrix_headers(text, path)
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:
@@ -44,6 +56,34 @@ def open_storage(path: Path) -> Iterator[cv2.FileStorage]:
         yield fs
     finally:
         fs.release()
+
+
+_DIM = re.compile(r"(?:\b(rows|cols)\s*:\s*|<(rows|cols)>\s*)([^\s,}<]*)")
+MAX_MATRIX_ELEMENTS = 1 << 26
+"""Largest matrix a calibration file may declare (64 Mi elements; a pano-table is far less)."""
+
+
+def _check_matrix_headers(text: str, path: Path) -> None:
+    """Refuse an opencv-matrix whose rows/cols are not plausible whole numbers *before*
+    cv2.FileStorage reads it (it allocates rows x cols first, whatever the data holds)."""
+    dims: list[int] = []
+    for m in _DIM.finditer(text):
+        raw = m.group(3)
+        try:
+            n = int(raw)
+        except ValueError:
+            raise CalibrationError(
+                f"{path}: matrix {m.group(1) or m.group(2)} {raw!r} is not a whole number"
+            ) from None
+        if not 0 <= n <= MAX_MATRIX_ELEMENTS:
+            raise CalibrationError(
+                f"{path}: matrix {m.group(1) or m.group(2)} {n} is not a plausible size"
+            )
+        dims.append(n)
+        if len(dims) % 2 == 0 and dims[-1] * dims[-2] > MAX_MATRIX_ELEMENTS:
+            raise CalibrationError(
+                f"{path}: a matrix of {dims[-2]}x{dims[-1]} is not a plausible size"
+            )
 
 
 def read_string(fs: cv2.FileStorage, path: Path, key: str) -> str:
@@ -94,8 +134,8 @@ def _peek_kind(path: Path) -> str | None:
         else:
             with path.open("rb") as fh:
                 head = fh.read(PEEK_BYTES)
-    except (OSError, EOFError, gzip.BadGzipFile):
-        return None
+    except (OSError, EOFError, gzip.BadGzipFile, zlib.error):
+        return None  # open_storage reads the whole file and says what is wrong with it
     for pat in _KIND_PATTERNS:
         m = pat.search(head)
         if m is not None:

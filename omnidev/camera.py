@@ -147,6 +147,27 @@ def maps_from_pixels(uv: FloatArray, valid: BoolArray, source_size: tuple[int, i
     return Maps(map_x, map_y, ok, (w, h))
 
 
+DEFAULT_MAP_BYTES_PER_PIXEL = 200.0
+"""Peak bytes per output pixel of building a view's maps when a camera model does not say
+(measured: the pano-table route about 180; a model with a fast route sets its own
+``map_bytes_per_pixel`` attribute)."""
+
+
+def map_bytes_per_pixel(camera: CameraModel) -> float:
+    """Peak memory of :func:`build_maps` plus :class:`Remapper` per output pixel, bytes.
+
+    A camera model may set ``map_bytes_per_pixel``; otherwise
+    :data:`DEFAULT_MAP_BYTES_PER_PIXEL`. The CLI checks views against the memory limit
+    with it before building them (:mod:`omnidev.budget`).
+    """
+    value = getattr(camera, "map_bytes_per_pixel", None)
+    return (
+        float(value)
+        if isinstance(value, int | float) and value > 0
+        else DEFAULT_MAP_BYTES_PER_PIXEL
+    )
+
+
 def project_maps(camera: CameraModel, view: View) -> Maps:
     """Maps by the plain route: the view's points through ``camera.project``."""
     pts = view.points(camera.default_elevation_deg())

@@ -3,16 +3,20 @@
 [camera]
 name = "hall"                 # optional
 source = "v4l2:/dev/video0"   # or: usb = "046d:0825[:SERIAL]"
-calibration = "hall.yml.gz"   # relative to the rig file's folder
+calibration = "hall.yml.gz"
+
+Relative paths (the calibration, a file source such as ``video:hall.avi``) are
+relative to the rig file's folder, wherever the command runs.
 """
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from omnidev.errors import OmnidevError
+from omnidev.inputfile import read_toml
+from omnidev.sources import resolve_uri
 
 
 class RigError(OmnidevError):
@@ -29,12 +33,7 @@ class Rig:
 def load_rig(path: Path | str) -> Rig:
     """Read a rig file; errors name the file and the key."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise RigError(f"{path}: rig file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise RigError(f"{path}: not valid TOML ({exc})") from None
+    data = read_toml(path, "rig file", error=RigError)
     cam = data.get("camera")
     if not isinstance(cam, dict):
         raise RigError(f"{path}: missing table [camera]")
@@ -56,5 +55,5 @@ def load_rig(path: Path | str) -> Rig:
     calibration = Path(calib)
     if not calibration.is_absolute():
         calibration = path.parent / calibration
-    uri = source if source is not None else f"usb:{usb}"
+    uri = resolve_uri(source, path.parent) if source is not None else f"usb:{usb}"
     return Rig(text("name") or path.stem, uri, calibration)

@@ -20,6 +20,10 @@ from dataclasses import dataclass
 ABS_MAX = 32767  # the absolute range of omnidev's uinput and HID devices: 0 .. ABS_MAX
 
 
+MAX_LAYOUT = 65535
+"""Largest screen side and offset in pixels (X11 and uinput address 16 bits)."""
+
+
 @dataclass(frozen=True, slots=True)
 class ScreenRect:
     """A rectangle of the desktop layout, in layout pixels (x, y of its top-left pixel)."""
@@ -48,6 +52,15 @@ class ScreenRect:
             x, y = (int(s) for s in offset.split("+")) if offset else (0, 0)
         except ValueError:
             raise ValueError(f"screen {text!r} is not WxH+X+Y (e.g. 1920x1080+0+0)") from None
+        if not (
+            0 < w <= MAX_LAYOUT
+            and 0 < h <= MAX_LAYOUT
+            and 0 <= x <= MAX_LAYOUT
+            and 0 <= y <= MAX_LAYOUT
+        ):
+            raise ValueError(
+                f"screen {text!r}: sizes 1..{MAX_LAYOUT} px and offsets 0..{MAX_LAYOUT} px"
+            )
         return cls(x, y, w, h)
 
 

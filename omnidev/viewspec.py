@@ -49,6 +49,40 @@ _KEYS = {
     "top": {"x", "y", "z", "cx", "cy"},
     "equirect": {"lon", "lat", "pan", "tilt", "roll"},
 }
+VIEW_HELP = """\
+views (--view KIND:WxH[,KEY=VALUE...]; W x H output pixels, 1..32768 per side;
+lengths in the calibration's unit, e.g. m for the fixtures; angles in degrees):
+  panorama:WxH     360-degree panorama of the camera's elevation band
+                   elev=LO:HI  elevation band (default: the camera's own range)
+                   start=DEG   azimuth at the left edge (default 0)
+                   span=DEG    azimuth range, (0, 360] (default 360)
+                   ccw=1       azimuth grows to the left (default 0: clockwise seen from above)
+  cylinder:WxH     panorama projected on a cylinder around the camera
+                   d=DIST      cylinder radius (required)
+                   z=LO:HI     bottom and top height of the cylinder (required)
+                   start=DEG, span=DEG, ccw=1 as for panorama
+  plane:WxH        perspective view of a vertical plane (eq. 4.14)
+                   d=DIST      distance of the plane from the camera axis (required)
+                   w=WIDTH     plane width (required, < 2 d)
+                   z=LO:HI     bottom and top height (required)
+                   az=DEG      azimuth of the plane's centre (default 0)
+                   or any plane: c=X:Y:Z centre, n=NX:NY:NZ normal (either sign),
+                   w=WIDTH, h=HEIGHT its size (all required), roll=DEG (default 0)
+  perspective:WxH  pinhole view
+                   fov=DEG     horizontal field of view, (0, 180) (default 90)
+                   pan=DEG, tilt=DEG, roll=DEG  view direction (default 0, 0, 0)
+  top:WxH          view of a horizontal plane from above
+                   x=EXTENT, y=EXTENT  plane size (required)
+                   z=HEIGHT    plane height, not 0 (required; e.g. -1.2 for a floor)
+                   cx=X, cy=Y  plane centre (default 0, 0)
+  equirect:WxH     equirectangular (longitude x latitude) image
+                   lon=LEFT:RIGHT  longitudes (default -180:180)
+                   lat=BOTTOM:TOP  latitudes (default -90:90)
+                   pan=DEG, tilt=DEG, roll=DEG  centre direction, as for perspective
+example: --view panorama:2048x512,elev=-60:10 --view plane:640x480,d=2,w=3,z=-1:1,az=90
+"""
+"""The ``--view`` section of ``omnidev unwarp --help`` (every kind and key of the parser)."""
+
 _REQUIRED = {"cylinder": {"d", "z"}, "plane": {"d", "w", "z"}, "top": {"x", "y", "z"}}
 
 
@@ -87,6 +121,10 @@ _PLANE_VERTICAL = {"d", "z", "az"}
 
 def parse_view(spec: str) -> View:
     """Parse a view description (see the module docstring)."""
+    if len(spec) > 1000:
+        raise ViewSpecError(
+            f"view {spec[:40]!r}...: {len(spec)} characters; not a view description"
+        )
     kind, _, rest = spec.partition(":")
     kind = kind.strip().lower()
     if kind not in _KEYS:
@@ -132,6 +170,17 @@ def parse_view(spec: str) -> View:
             raise ViewSpecError(f"view {spec!r}: ccw must be 0 or 1, got {text!r}")
         return text in ("0", "no", "false")
 
+    if "elev" in kv:
+        lo, hi = _pair(spec, "elev", kv["elev"])
+        if not -90 <= lo < hi <= 90:
+            raise ViewSpecError(f"view {spec!r}: elev=LO:HI must have -90 <= LO < HI <= 90 degrees")
+    if "span" in kv and not 0 < _num(spec, "span", kv["span"]) <= 360:
+        raise ViewSpecError(f"view {spec!r}: span must be in (0, 360] degrees")
+    for key in ("start", "az", "pan", "tilt", "roll"):
+        if key in kv and not abs(_num(spec, key, kv[key])) <= 3600:
+            raise ViewSpecError(f"view {spec!r}: {key} must be within +-3600 degrees")
+    if kind == "top" and _num(spec, "z", kv["z"]) == 0:
+        raise ViewSpecError(f"view {spec!r}: z (the plane's height) must not be 0, the mirror's")
     try:
         if kind == "panorama":
             elev = _pair(spec, "elev", kv["elev"]) if "elev" in kv else None

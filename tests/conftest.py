@@ -32,3 +32,25 @@ def realdata() -> Path:
     if not REALDATA.is_dir():
         pytest.skip(f"real data not available: {REALDATA} is absent (it comes with ../shared)")
     return REALDATA
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--fuzz-full",
+        action="store_true",
+        help="tests/fuzz: draw many more random mutations per input format",
+    )
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
+    """The fuzz suite's counts by command (tests/fuzz), when it ran."""
+    import sys
+
+    text = ""
+    for name in ("tests.fuzz.test_fuzz", "fuzz.test_fuzz"):  # as pytest named it
+        mod = sys.modules.get(name)
+        if mod is not None:
+            text = text or mod.pytest_terminal_summary_text()
+    if text:
+        terminalreporter.section("fuzz suite: outcomes by command")
+        terminalreporter.write_line(text)

@@ -131,10 +131,12 @@ def _decoded(path: Path) -> list[np.ndarray]:
         return [f.to_ndarray(format="yuv420p") for f in c.decode(video=0)]
 
 
-def _assert_identical(batch: dict[str, Any], out: Path, suffix: str, encode: str) -> int:
+def _assert_identical(
+    batch: dict[str, Any], out: Path, suffix: str, encode: str, videos: bool = False
+) -> int:
     """Every output of ``out`` decodes to the single-process frames; returns frames compared."""
     n = 0
-    for name in [*CLIPS, "img0.png", "img1.png"]:
+    for name in [*CLIPS] + ([] if videos else ["img0.png", "img1.png"]):
         sfx = ".png" if name.endswith(".png") else suffix
         for view, ref in _single(batch, name, sfx, "" if sfx == ".png" else encode):
             got = out / view / Path(name).with_suffix(sfx)
@@ -175,6 +177,8 @@ class Cluster:
 
         with Client(self.address, timeout=30) as client:
             client.wait_for_workers(workers, timeout=60)
+            pids = client.run(os.getpid)
+        self.address_of = {pid: addr for addr, pid in pids.items()}  # worker pid -> address
 
     def close(self) -> None:
         for p in reversed(self.procs):
@@ -195,10 +199,14 @@ def cluster(batch: dict[str, Any]) -> Iterator[Cluster]:
     c.close()
 
 
-def _argv(batch: dict[str, Any], out: Path, *extra: str) -> list[str]:
+def _argv(batch: dict[str, Any], out: Path, *extra: str, videos: bool = False) -> list[str]:
+    """The batch command; ``videos``: only the three good clips."""
     src = batch["src"]
     inputs = [src / "*.mp4", src / "sub" / "b.mkv", src / "c.avi", src / "img*.png"]
-    argv = ["batch", "unwarp", *map(str, inputs), str(src / "missing.mp4")]
+    if videos:
+        inputs = [src / name for name in CLIPS]
+    argv = ["batch", "unwarp", *map(str, inputs)]
+    argv += [] if videos else [str(src / "missing.mp4")]
     argv += ["--camera", str(batch["cam"]), "--out", str(out), "--range-frames", "12"]
     argv += ["--images-per-task", "1", "--no-progress", "--json"]
     for v in VIEWS:
@@ -264,10 +272,12 @@ def _wait_for(cond: Any, timeout_s: float = 60.0) -> None:
         time.sleep(0.02)
 
 
-def test_interrupted_job_reruns_only_missing_ranges(batch, cluster):
+def test_interrupted_job_reruns_only_missing_ranges(batch, cluster, capsys):
     out = batch["tmp"] / "out-resume"
-    argv = _argv(batch, out, "--scheduler", cluster.address, "--format", "mp4",
-                 "--encode", "crf=0")  # fmt: skip
+    argv = _argv(
+        batch, out, "--scheduler", cluster.address, "--format", "mp4", "--encode", "crf=0",
+        videos=True,
+    )  # fmt: skip
     cmd = [sys.executable, "-m", "omnidev.cli.main", *argv]
     job = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -280,9 +290,9 @@ def test_interrupted_job_reruns_only_missing_ranges(batch, cluster):
     assert job.returncode == 130, err
     assert "run the same command to finish" in err
     before = {(r["unit"], r["range"]) for r in _journal_ranges(out)}
-    rerun = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert rerun.returncode == 1, rerun.stderr  # the three bad inputs again
-    report = _report(rerun.stdout)
+    capsys.readouterr()
+    assert main(argv) == 0  # the same command again, here in-process
+    report = _report(capsys.readouterr().out)
     videos = [u for u in report["inputs"] if u["kind"] == "video" and u["status"] != "failed"]
     total = sum(u["ranges"] for u in videos)
     run_now = sum(u["ranges_run"] for u in videos)
@@ -292,36 +302,7 @@ def test_interrupted_job_reruns_only_missing_ranges(batch, cluster):
     after = _journal_ranges(out)
     again = [(r["unit"], r["range"]) for r in after if (r["unit"], r["range"]) in before]
     assert len(again) == len(before)  # no range finished before was run again
-    _assert_identical(batch, out, ".mp4", "?crf=0")
-
-
-def test_killed_worker_job_completes_identically(batch):
-    c = Cluster(batch["tmp"], 2)
-    try:
-        out = batch["tmp"] / "out-kill"
-        argv = _argv(batch, out, "--scheduler", c.address, "--format", "avi")
-        result: dict[str, Any] = {}
-
-        def run() -> None:
-            result["rc"] = main(argv)
-
-        t = threading.Thread(target=run)
-        t.start()
-        _wait_for(lambda: len(_journal_ranges(out)) >= 1 or not t.is_alive())
-        victim = c.workers[0]
-        victim.send_signal(signal.SIGKILL)
-        victim.wait(10)
-        killed_at = len(_journal_ranges(out))
-        t.join(120)
-        assert not t.is_alive()
-        assert result["rc"] == 1  # only the bad inputs failed
-        recs = _journal_ranges(out)
-        assert len(recs) > killed_at  # the job went on after the worker died
-        workers_after = {r["worker"] for r in recs[killed_at + 1 :]}
-        assert len(workers_after) == 1  # ... on the one worker left
-        _assert_identical(batch, out, ".avi", "")
-    finally:
-        c.close()
+    _assert_identical(batch, out, ".mp4", "?crf=0", videos=True)
 
 
 def test_plan_ranges_at_keyframes_of_a_real_file(batch):
@@ -342,3 +323,30 @@ def test_bad_command_is_one_line(batch, capsys, tmp_path):
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "--camera" in err
     shutil.rmtree(tmp_path, ignore_errors=True)
     os.makedirs(tmp_path, exist_ok=True)
+
+
+def test_killed_worker_job_completes_identically(batch, cluster):
+    """Last in the file: it kills one of the module's two workers."""
+    out = batch["tmp"] / "out-kill"
+    argv = _argv(batch, out, "--scheduler", cluster.address, "--format", "avi", videos=True)
+    result: dict[str, Any] = {}
+
+    def run() -> None:
+        result["rc"] = main(argv)
+
+    t = threading.Thread(target=run)
+    t.start()
+    _wait_for(lambda: len(_journal_ranges(out)) >= 1 or not t.is_alive())
+    victim = cluster.workers[0]
+    victim.send_signal(signal.SIGKILL)
+    victim.wait(10)
+    killed_at = len(_journal_ranges(out))
+    t.join(120)
+    assert not t.is_alive()
+    assert result["rc"] == 0
+    recs = _journal_ranges(out)
+    survivor = cluster.address_of[cluster.workers[1].pid]
+    assert {r["worker"] for r in recs} <= {cluster.address_of[victim.pid], survivor}
+    # the job went on after the worker died, on the one left
+    assert len(recs) > killed_at and recs[-1]["worker"] == survivor
+    _assert_identical(batch, out, ".avi", "", videos=True)

@@ -77,6 +77,20 @@ def test_first_frame_only_starts_the_model() -> None:
     assert all(s is not None for s in found)
 
 
+def test_confirm_withholds_a_new_track_one_frame() -> None:
+    """confirm=2: a spot is reported from the second frame in a row it is found on."""
+    frames = _dark_rig_frames(6, spot=True)
+    det = ColourSpotDetector("red", confirm=2)
+    assert det.detect(frames[0]) is None
+    found = [det.detect(f) for f in frames[1:]]
+    assert found[0] is None and all(s is not None for s in found[1:])
+    ref = ColourSpotDetector("red")
+    ref.detect(frames[0])
+    first = [ref.detect(f) for f in frames[1:]]
+    for a, b in zip(found[1:], first[1:], strict=True):
+        assert a is not None and b is not None and (a.u, a.v) == (b.u, b.v)
+
+
 def test_static_content_never_fires() -> None:
     det = ColourSpotDetector("any")
     assert all(det.detect(f) is None for f in _dark_rig_frames(10, spot=False))
@@ -87,6 +101,10 @@ def test_bad_arguments() -> None:
         ColourSpotDetector("blue")
     with pytest.raises(ValueError, match="min_area"):
         ColourSpotDetector("red", min_area=5, max_area=2)
+    with pytest.raises(ValueError, match="confirm 1..10"):
+        ColourSpotDetector("red", confirm=0)
+    with pytest.raises(ValueError, match="new_margin"):
+        ColourSpotDetector("red", new_margin=0)
     det = ColourSpotDetector("red", np.ones((10, 10), bool))
     with pytest.raises(ValueError, match="mask is 10x10, image 20x10"):
         det.detect(np.zeros((10, 20, 3), np.uint8))

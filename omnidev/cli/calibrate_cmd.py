@@ -11,8 +11,11 @@ import cv2
 import numpy as np
 
 from omnidev.atomic import check_output
+from omnidev.budget import check_pixels
 from omnidev.cli.options import parse_floats, parse_size
 from omnidev.errors import CalibrationError
+from omnidev.imagefile import read_image
+from omnidev.inputfile import read_json
 from omnidev.panotable.camfile import save_table
 from omnidev.panotable.center import detect_image_center
 from omnidev.panotable.landmarks import read_landmarks_csv
@@ -23,6 +26,9 @@ from omnidev.panotable.table import (
     calibrate_general,
     dissertation_misfit,
 )
+
+TABLE_BYTES_PER_ENTRY = 160.0
+"""Peak memory of filling a pano-mapping table and plotting it, bytes per entry (upper bound)."""
 
 
 def register(sub: Any) -> None:
@@ -116,15 +122,18 @@ def run(args: argparse.Namespace) -> int:
     mirror = np.array(parse_floats(args.mirror_center, 3, "--mirror-center"))
     image = None
     if args.image is not None:
-        image = cv2.imread(str(args.image), cv2.IMREAD_COLOR)
-        if image is None:
-            raise CalibrationError(f"{args.image}: cannot read image")
+        image = read_image(args.image, "omni-image", error=CalibrationError)
     if image is not None:
         size = (image.shape[1], image.shape[0])
     elif args.image_size:
         size = parse_size(args.image_size, "--image-size")
     else:
         raise CalibrationError("give --image or --image-size")
+    if args.cutoff_radius is not None and not 0 <= args.cutoff_radius < math.hypot(*size):
+        raise CalibrationError(
+            f"--cutoff-radius {args.cutoff_radius:g}: give pixels >= 0 within the "
+            f"{size[0]}x{size[1]} image"
+        )
     cutoff = args.cutoff_radius or 0.0
     disc = None
     sigma = None
@@ -148,13 +157,30 @@ def run(args: argparse.Namespace) -> int:
         )
     else:
         cu, cv = parse_floats(args.image_center, 2, "--image-center")
+        if not (-0.5 <= cu <= size[0] - 0.5 and -0.5 <= cv <= size[1] - 0.5):
+            raise CalibrationError(
+                f"--image-center {args.image_center}: outside the {size[0]}x{size[1]} image"
+            )
         center = (cu, cv)
     rho_range = None
     if args.elevation_range:
         lo, hi = parse_floats(args.elevation_range, 2, "--elevation-range")
+        if not -90 < lo < hi < 90:
+            raise CalibrationError(
+                f"--elevation-range {args.elevation_range}: give LO,HI degrees with "
+                "-90 < LO < HI < 90"
+            )
         rho_range = (math.radians(lo), math.radians(hi))
-    table_size = parse_size(args.table_size, "--table-size") if args.table_size else None
-    bound = args.max_residual if args.max_residual and args.max_residual > 0 else None
+    table_size = None
+    if args.table_size:
+        table_size = parse_size(args.table_size, "--table-size", minimum=2, maximum=32768)
+    tw, th = table_size or size
+    check_pixels(tw, th, TABLE_BYTES_PER_ENTRY, f"a {tw}x{th} pano-mapping table")
+    if not (math.isfinite(args.max_residual) and args.max_residual >= 0):
+        raise CalibrationError(
+            f"--max-residual {args.max_residual:g}: give pixels >= 0 (0 = never refuse)"
+        )
+    bound = args.max_residual if args.max_residual > 0 else None
     print(f"{len(lm.rows)} landmarks from {args.landmarks}")
     calib: Calibration | GeneralCalibration
     if args.model == "general":
@@ -276,7 +302,14 @@ def _register_screen(csub: Any) -> None:
         help="the dot layout file --write-patterns wrote (layout.json): rows, columns, margins",
     )
     sc.add_argument("--screen", metavar="WxH", help="screen resolution (default 1920x1080)")
-    sc.add_argument("--method", default=None, help="image->screen method (default radial)")
+    from omnidev.screencal.calibration import DEFAULT_METHOD, METHODS
+
+    sc.add_argument(
+        "--method",
+        default=None,
+        metavar="|".join(METHODS),
+        help=f"image -> screen method: {', '.join(METHODS)} (default {DEFAULT_METHOD})",
+    )
     sc.add_argument(
         "--border",
         choices=("region", "tdm"),
@@ -321,30 +354,22 @@ def _write_png(path: Path, image: np.ndarray[Any, Any], force: bool) -> None:
 
 
 def _read_grey(path: Path, what: str) -> np.ndarray[Any, Any]:
-    """An image file as the API sees it: read as BGR, converted by screencal's to_gray."""
+    """An image file as the API sees it: read as BGR (header checked before decoding),
+    converted by screencal's to_gray."""
     from omnidev.screencal.features import to_gray
 
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise CalibrationError(f"{path}: cannot read the {what} image")
+    img = read_image(path, f"{what} image", error=CalibrationError)
     return to_gray(np.asarray(img, np.uint8))
 
 
 def _layout(args: argparse.Namespace, size: tuple[int, int]) -> Any:
     """The dot layout from --layout, or --rows/--cols/--n and --margin."""
-    import json
-
     from omnidev.screencal.patterns import dot_grid, layout_from_dict
 
     if args.layout is not None:
         if args.rows or args.cols or args.margin:
             raise CalibrationError("give --layout or --rows/--cols/--margin, not both")
-        try:
-            doc = json.loads(Path(args.layout).read_text())
-        except FileNotFoundError:
-            raise CalibrationError(f"{args.layout}: no such layout file") from None
-        except (OSError, ValueError) as exc:
-            raise CalibrationError(f"{args.layout}: not a JSON layout file ({exc})") from None
+        doc = read_json(args.layout, "JSON layout file", error=CalibrationError)
         if not isinstance(doc, dict):
             raise CalibrationError(f"{args.layout}: not a JSON layout object")
         try:
@@ -363,8 +388,8 @@ def _layout(args: argparse.Namespace, size: tuple[int, int]) -> Any:
         margin = (vals[0], vals[-1])
     rows = args.rows or args.n
     cols = args.cols or args.n
-    if rows < 2 or cols < 2:
-        raise CalibrationError(f"dot layout {rows} x {cols}: at least 2 x 2")
+    if not (2 <= rows <= 64 and 2 <= cols <= 64):
+        raise CalibrationError(f"dot layout {rows} x {cols}: give 2..64 dots per row and column")
     try:
         return dot_grid(size[0], size[1], rows=rows, cols=cols, margin=margin)
     except ValueError as exc:
@@ -417,14 +442,17 @@ def run_screen(args: argparse.Namespace) -> int:
         fit_calibration,
     )
 
-    size = parse_size(args.screen, "--screen") if args.screen else None
-    method = args.method or DEFAULT_METHOD
+    size = parse_size(args.screen, "--screen", maximum=16384) if args.screen else None
+    method = DEFAULT_METHOD if args.method is None else args.method
     if method not in METHODS:
         raise CalibrationError(f"--method {method!r}: choose from {', '.join(METHODS)}")
-    if args.n < 2:
-        raise CalibrationError(f"--n {args.n}: at least 2")
+    if not 2 <= args.n <= 64:
+        raise CalibrationError(f"--n {args.n}: give 2..64 dots per row")
+    if args.settle < 0 or args.average < 1:
+        raise CalibrationError("--settle must be >= 0 and --average >= 1 frames")
     layout = _layout(args, size or (1920, 1080))
     size = layout.screen_px
+    check_pixels(size[0], size[1], 12, f"patterns of a {size[0]}x{size[1]} screen")
     if args.write_patterns is not None:
         import json
 

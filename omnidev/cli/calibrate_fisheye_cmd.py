@@ -14,12 +14,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 from tqdm import tqdm
 
 from omnidev.atomic import atomic_path, check_output
 from omnidev.errors import CalibrationError
+from omnidev.imagefile import read_image
 
 
 def register_fisheye(csub: Any) -> None:
@@ -80,9 +80,7 @@ def run_fisheye(args: argparse.Namespace) -> int:
     detections: list[Detection | None] = []
     names = [str(p) for p in args.images]
     for path in tqdm(args.images, desc="finding the pattern", unit="image", file=sys.stderr):
-        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-        if image is None:
-            raise CalibrationError(f"{path}: cannot read the image")
+        image = read_image(path, "calibration image", grey=True, error=CalibrationError)
         this = (int(image.shape[1]), int(image.shape[0]))
         if size is None:
             size, first = this, path

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from omnidev.atomic import check_output
+from omnidev.budget import check_pixels
 from omnidev.cli.options import parse_size
 from omnidev.errors import CalibrationError, OmnidevError
 
@@ -84,6 +85,7 @@ def _describe(lens: Any) -> str:
 def _coverage(lens: Any, size: tuple[int, int]) -> str:
     """How far from the optical axis the image's pixels see (on a 4 px grid)."""
     w, h = size
+    check_pixels(w // 4 + 2, h // 4 + 2, 200, f"the coverage of a {w}x{h} image")
     u, v = np.meshgrid(np.linspace(0, w - 1, w // 4 + 2), np.linspace(0, h - 1, h // 4 + 2))
     rays, ok = lens.unproject(np.stack([u, v], -1))
     if not ok.any():

@@ -42,6 +42,8 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if not 0 < args.timeout <= 3600:
+        raise ControlError(f"--timeout {args.timeout:g}: give seconds in (0, 3600]")
     reply = request(args.socket, args.action, timeout=args.timeout)
     if not reply.get("ok"):
         raise ControlError(f"omnidevd refused {args.action!r}: {reply.get('error', 'no reason')}")

@@ -15,6 +15,9 @@ from typing import Any
 
 from omnidev.errors import OmnidevError
 
+MAX_SEED = 2**31 - 1
+"""Largest scene seed."""
+
 
 def register(sub: Any) -> None:
     p = sub.add_parser(
@@ -87,8 +90,13 @@ def run(args: argparse.Namespace) -> int:
         check_output(args.output, force=args.force)
     if args.scene_seed is not None:
         w = args.write
-        if w is not None and w.exists() and any(w.iterdir()) and not args.force:
-            raise OmnidevError(f"{args.write} exists and is not empty; pass --force")
+        if w is not None and (w.exists() or w.is_symlink()):
+            if not w.is_dir():
+                raise OmnidevError(f"--write {w}: exists and is not a folder")
+            if any(w.iterdir()) and not args.force:
+                raise OmnidevError(f"{args.write} exists and is not empty; pass --force")
+        if not 0 <= args.scene_seed <= MAX_SEED:
+            raise OmnidevError(f"--scene-seed {args.scene_seed}: give 0 .. {MAX_SEED}")
         res = run_one(task, args.scene_seed, options, args.write)
         doc = _clean(res.to_dict())
         if args.json:
@@ -109,6 +117,12 @@ def run(args: argparse.Namespace) -> int:
     if args.merge:
         doc = merge_reports(task, [(str(f), _read_report(f)) for f in args.merge])
     else:
+        if not 1 <= args.scenes <= 1_000_000:
+            raise OmnidevError(f"--scenes {args.scenes}: give 1 .. 1000000 scenes")
+        if not 0 <= args.jobs <= 256:
+            raise OmnidevError(f"--jobs {args.jobs}: give 0 (one per core) .. 256")
+        if not 0 <= args.seed <= MAX_SEED - args.scenes + 1:
+            raise OmnidevError(f"--seed {args.seed}: the scene seeds must be 0 .. {MAX_SEED}")
         jobs = args.jobs if args.jobs > 0 else (os.cpu_count() or 1)
         doc = evaluate(
             task,
@@ -132,9 +146,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _read_report(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise OmnidevError(f"{path}: no such report") from None
-    except (OSError, ValueError) as exc:
-        raise OmnidevError(f"{path}: not a JSON report ({exc})") from None
+    from omnidev.inputfile import read_json
+
+    if not (path.exists() or path.is_symlink()):
+        raise OmnidevError(f"{path}: no such report")
+    return read_json(path, "JSON report of omnidev eval")

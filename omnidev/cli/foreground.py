@@ -33,7 +33,14 @@ def add_pointer_arguments(p: argparse.ArgumentParser) -> None:
         "missing, truncated or corrupt file stops with an error naming its last good "
         "frame (exit 2). See docs/daemon.md, 'Sources and the frame queue'."
     )
-    p.add_argument("--sink", default="record", help="sink plugin (uinput, xtest, hidg, record)")
+    p.add_argument(
+        "--sink",
+        default="record",
+        metavar="NAME",
+        help="where the pointer goes: uinput (the kernel pointer), xtest (an X server, "
+        "--sink-option display=:0), hidg (a USB gadget), record (JSON lines to "
+        "--sink-option path=FILE; default: record to standard output); see docs/sinks.md",
+    )
     p.add_argument(
         "--sink-option", action="append", default=[], metavar="KEY=VALUE", help="sink option"
     )
@@ -72,6 +79,8 @@ def run_foreground(
     from omnidev.sources import open_source
 
     options = sink_options(args.sink_option)
+    if args.sink == "record" and "path" not in options:
+        options["path"] = "-"  # the default: the pointer's events on standard output
     with open_source(args.source):  # a missing camera: a clear error now, not a retry loop
         pass
     doc = {

@@ -7,12 +7,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 from tqdm import tqdm
 
 from omnidev.atomic import atomic_path, check_output
 from omnidev.errors import CalibrationError
+from omnidev.imagefile import read_image
 
 
 def register(sub: Any) -> None:
@@ -46,12 +46,12 @@ def run_board(args: argparse.Namespace) -> int:
             raise CalibrationError(f"{bd.name}: its image {bd.image!r} is not among the inputs")
     lines = ["u,v,X,Y,Z,group"]
     group = 0
+    if args.min_corners < 1:
+        raise CalibrationError(f"--min-corners {args.min_corners}: give 1 or more")
     total = 0
     size: tuple[int, int] | None = None
     for path in tqdm(args.images, desc="images", unit="image", file=sys.stderr):
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if img is None:
-            raise CalibrationError(f"{path}: cannot read image")
+        img = read_image(path, "omni-image", error=CalibrationError)
         if size is None:
             size = (img.shape[1], img.shape[0])
         elif size != (img.shape[1], img.shape[0]):

@@ -23,7 +23,7 @@ def register(sub: Any) -> None:
     p = sub.add_parser(
         "laser",
         help="run the laser pointer (a fixed camera watching a calibrated screen) into a sink",
-        description=__doc__.splitlines()[0] if __doc__ else None,
+        description=__doc__.splitlines()[0].replace("``", "") if __doc__ else None,
     )
     p.add_argument("source", help="source URI or path (v4l2:/dev/video0, a video file, ...)")
     p.add_argument(

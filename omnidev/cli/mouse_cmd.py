@@ -20,7 +20,7 @@ def register(sub: Any) -> None:
     p = sub.add_parser(
         "mouse",
         help="run the camera mouse (hand-held webcam aimed at a monitor) into a pointer sink",
-        description=__doc__.splitlines()[0] if __doc__ else None,
+        description=__doc__.splitlines()[0].replace("``", "") if __doc__ else None,
     )
     p.add_argument("source", help="source URI or path (v4l2:/dev/video0, a video file, ...)")
     p.add_argument("--layout", required=True, type=Path, help="landmark layout (JSON or TOML)")
@@ -149,6 +149,13 @@ def run_landmarks(args: argparse.Namespace) -> int:
 
     w, h = _pair(args.screen_mm, "--screen-mm")
     mx, my = _pair(args.margin_mm, "--margin-mm")
+    if not (50 <= w <= 5000 and 50 <= h <= 5000):
+        raise OmnidevError(f"--screen-mm {args.screen_mm}: give 50..5000 mm per side")
+    if not (0 <= mx <= 500 and 0 <= my <= 500):
+        raise OmnidevError(f"--margin-mm {args.margin_mm}: give 0..500 mm")
+    for flag, v in (("--circle-mm", args.circle_mm), ("--square-mm", args.square_mm)):
+        if not 1 <= v <= 300:
+            raise OmnidevError(f"{flag} {v:g}: give 1..300 mm")
     if args.dpi < 72 or args.dpi > 1200:
         raise OmnidevError(f"--dpi {args.dpi:g}: use 72..1200")
     layout = LandmarkLayout.symmetric(

@@ -71,8 +71,10 @@ def register_calibrate(csub: Any) -> None:
 def run_ring(args: argparse.Namespace) -> int:
     from omnidev.nonsvp.ring_pattern import ring_pattern, save_ring_pattern
 
-    if not args.mirror_radius_mm > 0:
-        raise OmnidevError("--mirror-radius-mm must be > 0")
+    if not 0 < args.mirror_radius_mm <= 90:
+        raise OmnidevError("--mirror-radius-mm must be in (0, 90] mm (the sheet is A4)")
+    if not 72 <= args.dpi <= 1200:
+        raise OmnidevError(f"--dpi {args.dpi:g}: use 72..1200")
     sheet = ring_pattern(args.mirror_radius_mm, dpi=args.dpi)
     args.outdir.mkdir(parents=True, exist_ok=True)
     for path in save_ring_pattern(sheet, args.outdir, force=args.force):
@@ -82,7 +84,6 @@ def run_ring(args: argparse.Namespace) -> int:
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    import cv2
     import numpy as np
 
     from omnidev.nonsvp.camfile import write_camera_file
@@ -97,14 +98,17 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
     a, b, m = parse_floats(args.mirror, 3, "--mirror")
     f, sw, sh = parse_floats(args.lens, 3, "--lens")
+    for flag, values in (("--mirror", (a, b, m)), ("--lens", (f, sw, sh))):
+        if not all(0 < v <= 1e4 for v in values):
+            raise OmnidevError(f"{flag} {getattr(args, flag[2:])}: give lengths in (0, 10000] mm")
     size = parse_size(args.size)
     mirror = Mirror.from_rim(a, b, m)
     lens = Lens(f, (sw, sh), size)
     indices = None
     if args.image is not None:
-        image = cv2.imread(str(args.image), cv2.IMREAD_GRAYSCALE)
-        if image is None:
-            raise OmnidevError(f"{args.image}: cannot read the image")
+        from omnidev.imagefile import read_image
+
+        image = read_image(args.image, "ring image", grey=True)
         if (image.shape[1], image.shape[0]) != size:
             raise OmnidevError(
                 f"{args.image}: the image is {image.shape[1]}x{image.shape[0]}, --size {args.size}"
@@ -116,10 +120,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
         for line in det.dropped:
             print(f"  left out: {line}")
     else:
-        try:
-            text = args.points.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise OmnidevError(f"{args.points}: cannot read: {exc.strerror}") from None
+        from omnidev.inputfile import read_text
+
+        text = read_text(args.points, "point file (CSV u,v,X,Y)")
         pixels, plane = parse_points_csv(text, source=str(args.points))
     cal = calibrate_tsai(pixels, plane, lens, indices=indices, refine=args.refine)
     pnp = solvepnp_pose(pixels, plane, lens, cal)

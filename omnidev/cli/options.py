@@ -34,14 +34,22 @@ def sink_options(items: list[str]) -> dict[str, Any]:
     return {k: typed_value(v) for k, v in key_values(items, "--sink-option").items()}
 
 
-def parse_size(text: str, what: str = "--size", minimum: int = 1) -> tuple[int, int]:
-    """``"640x480"`` -> ``(640, 480)`` (pixels); an error names ``what`` and the minimum."""
+MAX_SIDE = 65500
+"""Largest image side in pixels (OpenCV's codecs stop near 65535)."""
+
+
+def parse_size(
+    text: str, what: str = "--size", minimum: int = 1, maximum: int = MAX_SIDE
+) -> tuple[int, int]:
+    """``"640x480"`` -> ``(640, 480)`` (pixels); an error names ``what`` and the range."""
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise OmnidevError(f"{what} {text!r} is not WxH in pixels (e.g. 640x480)") from None
     if w < minimum or h < minimum:
         raise OmnidevError(f"{what} {text!r}: at least {minimum}x{minimum}")
+    if w > maximum or h > maximum:
+        raise OmnidevError(f"{what} {text!r}: at most {maximum} pixels per side")
     return w, h
 
 

@@ -64,5 +64,7 @@ def run(args: argparse.Namespace) -> int:
     sink = open_sink(args.sink, options, mapping)
     with release_on_signals(sink):
         sent = replay(args.recording, sink, realtime=not args.fast, timing=args.timing)
+    if sent == 0:
+        raise OmnidevError(f"{args.recording}: no move or button events to replay")
     print(f"replayed {sent} events into {args.sink}")
     return 0

@@ -25,19 +25,29 @@ from typing import Any, cast
 import cv2
 from tqdm import tqdm
 
+from omnidev.atomic import check_output
+from omnidev.budget import check_memory
 from omnidev.calibfile import load_camera
-from omnidev.camera import Maps, Remapper, build_maps
+from omnidev.camera import Maps, Remapper, build_maps, map_bytes_per_pixel
 from omnidev.cli.options import key_values
 from omnidev.errors import OmnidevError, OutputError
 from omnidev.frame import Frame
-from omnidev.outputs import Layout, Output, OutputSpec, open_output, split_output_uri, uses_stdout
+from omnidev.outputs import (
+    MAX_FPS,
+    Layout,
+    Output,
+    OutputSpec,
+    open_output,
+    split_output_uri,
+    uses_stdout,
+)
 from omnidev.outputs.pixels import i420_size
 from omnidev.planar import PlanarRemapper
 from omnidev.rig import load_rig
 from omnidev.sources import Source, avfile, open_source, split_uri
 from omnidev.videopipe import Remap
 from omnidev.videopipe import run as run_pipeline
-from omnidev.viewspec import parse_view
+from omnidev.viewspec import VIEW_HELP, parse_view
 
 
 def usable_cores() -> int:
@@ -53,13 +63,15 @@ def register(sub: Any) -> None:
         "unwarp",
         help="unwarp an image, video or live source into views",
         description="Unwarp an omni-image, video or live source into one or more views. "
-        "Pair each --view with an -o output, in order. View syntax: "
-        "panorama:WxH[,elev=LO:HI] | cylinder:WxH,d=D,z=LO:HI | plane:WxH,d=D,w=W,z=LO:HI"
-        "[,az=DEG] | plane:WxH,c=X:Y:Z,n=NX:NY:NZ,w=W,h=H[,roll=DEG] (any plane: centre, "
-        "normal, size) | perspective:WxH[,fov=DEG,pan=DEG,tilt=DEG,roll=DEG] | top:WxH,x=X,y=Y,z=Z"
-        " | equirect:WxH[,lon=L:R,lat=B:T]. Outputs: an image or video path "
-        "(file:PATH?crf=&preset=&codec=), - or y4m:- (a Y4M stream on standard output), "
-        "raw:-?format=bgr24, v4l2:/dev/videoN?format=yuyv (docs/outputs.md).",
+        "Pair each --view with an -o output, in order.",
+        epilog=VIEW_HELP
+        + "\noutputs: an image or video path (file:PATH?crf=&preset=&codec=), - or y4m:- "
+        "(a Y4M stream on standard output), raw:-?format=bgr24, v4l2:/dev/videoN?format=yuyv "
+        "(docs/outputs.md)"
+        + "\ninputs: an image, a video file, images:GLOB, video:PATH[?loop=1&rate=FPS], "
+        "v4l2:/dev/videoN[?width=W&height=H&fps=F], usb:VID:PID[:SERIAL] "
+        "(quote a URI with & for the shell)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("input", nargs="?", help="source URI or path (omit with --rig)")
     p.add_argument("--camera", type=Path, help="calibration file (any registered kind)")
@@ -80,8 +92,13 @@ def register(sub: Any) -> None:
         help="output, one per --view: image or video path, -, y4m:-, raw:-, v4l2:/dev/videoN",
     )
     p.add_argument("--interpolation", choices=("linear", "nearest", "cubic"), default="linear")
-    p.add_argument("--frames", type=int, help="stop after this many frames")
-    p.add_argument("--fps", type=float, help="output video frame rate (default: the source's)")
+    p.add_argument("--frames", type=int, help="stop after this many frames (at least 1)")
+    p.add_argument(
+        "--fps",
+        type=float,
+        help=f"output video frame rate, frames per second, (0, {MAX_FPS:g}] (default: the "
+        "source's, else 25)",
+    )
     p.add_argument(
         "--threads",
         type=int,
@@ -103,14 +120,18 @@ def run(args: argparse.Namespace) -> int:
         )
     if (args.camera is None) == (args.rig is None):
         raise OmnidevError("give exactly one of --camera FILE or --rig RIG.toml")
-    if args.threads < 1:
-        raise OmnidevError(f"--threads {args.threads}: give 1 or more")
+    if not 1 <= args.threads <= 256:
+        raise OmnidevError(f"--threads {args.threads}: give 1 .. 256")
     if args.frames is not None and args.frames < 1:
         raise OmnidevError(f"--frames {args.frames}: give 1 or more")
-    if args.fps is not None and not args.fps > 0:
-        raise OmnidevError(f"--fps {args.fps}: give a frame rate > 0")
+    if args.fps is not None and not 0 < args.fps <= MAX_FPS:
+        raise OmnidevError(f"--fps {args.fps:g}: give frames per second in (0, {MAX_FPS:g}]")
     outputs_uris = [str(o) for o in args.output]
     _check_distinct(outputs_uris)
+    for o in outputs_uris:  # the common "exists" / folder mistakes fail before any work
+        scheme, rest, _ = split_output_uri(o)
+        if scheme == "file":
+            check_output(Path(rest), force=args.force)
     uri = args.input
     calib_path = args.camera
     if args.rig is not None:
@@ -121,6 +142,10 @@ def run(args: argparse.Namespace) -> int:
         raise OmnidevError("give an input source (path or URI)")
     views = [parse_view(v) for v in args.view]
     camera = load_camera(calib_path, key_values(args.camera_option, "--camera-option"))
+    check_memory(
+        sum(v.width * v.height * (map_bytes_per_pixel(camera) + 6.0) for v in views),
+        "the maps of " + ", ".join(f"view {s}" for s in args.view),
+    )
     try:
         maps = [build_maps(camera, v) for v in views]
     except ValueError as exc:  # a view the camera cannot fill (e.g. no elevation band)
@@ -143,7 +168,7 @@ def run(args: argparse.Namespace) -> int:
         if layout == "bgr" and first.image.ndim == 2:
             layout = "gray"
         remaps = [remapper_for(m, layout, args.interpolation) for m in maps]
-        fps = args.fps or source.fps or 25.0
+        fps = args.fps or (source.fps if source.fps and source.fps <= MAX_FPS else None) or 25.0
         live = bool(getattr(source, "live", False))
         preferred = output_layouts(layout)
         with contextlib.ExitStack() as stack:

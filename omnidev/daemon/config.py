@@ -45,19 +45,24 @@ retry_max_s = 10.0            # ... doubling up to this
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from omnidev.daemon.control import DEFAULT_SOCKET
 from omnidev.errors import ConfigError
+from omnidev.inputfile import read_toml
 from omnidev.screen import ScreenMapping, ScreenRect
+from omnidev.sources import resolve_uri
 
 DEFAULT_CONFIG = Path("/etc/omnidev/omnidev.toml")
 # Frames the queue may hold: a live source's frames beyond one or two only add
 # latency, a file's only memory (16 frames of 1920x1080 BGR are 100 MB).
 MAX_QUEUE = 16
+
+MAX_CUTOFF_HZ = 1000.0
+"""Largest One Euro cutoff accepted (Hz): far above any camera's frame rate."""
+MAX_BETA = 1e6
 
 _SECTIONS: dict[str, set[str]] = {
     "source": {"uri"},
@@ -137,16 +142,7 @@ class DaemonConfig:
 def load_config(path: Path) -> DaemonConfig:
     """Read and validate ``path``; a :class:`ConfigError` names the file and key."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: configuration file not found") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    doc = read_toml(path, "configuration file", error=ConfigError)
     return parse_config(doc, path)
 
 
@@ -176,17 +172,23 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
             raise fail(f"{section}.{key}", f"must be {_kind_name(kind)}, got {value!r}")
         if not isinstance(value, kind):
             raise fail(f"{section}.{key}", f"must be {_kind_name(kind)}, got {value!r}")
+        if isinstance(value, str) and "\0" in value:
+            raise fail(f"{section}.{key}", "contains a NUL character")
         return value
 
-    def positive(section: str, key: str, default: float, allow_zero: bool = False) -> float:
+    def positive(
+        section: str, key: str, default: float, limit: float, allow_zero: bool = False
+    ) -> float:
         value = float(get(section, key, (int, float), default))
-        if not (value > 0 or (allow_zero and value == 0)) or value != value:
-            raise fail(f"{section}.{key}", f"must be a number {'>=' if allow_zero else '>'} 0")
+        low = "0 <=" if allow_zero else "0 <"
+        if not (value > 0 or (allow_zero and value == 0)) or not value <= limit:
+            raise fail(f"{section}.{key}", f"must be a number with {low} value <= {limit:g}")
         return value
 
     source = get("source", "uri", str)
     if not source.strip():
         raise fail("source.uri", "is empty")
+    source = resolve_uri(source, path.parent)
     tracker = get("tracker", "name", str)
     calib_text = get("tracker", "calibration", str, "")
     calibration = Path(calib_text) if calib_text else None
@@ -196,7 +198,12 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
         raise fail("tracker.calibration", f"file {calibration} not found")
     tracker_options = get("tracker", "options", dict, {})
     sink = get("sink", "name", str)
-    sink_options = get("sink", "options", dict, {})
+    sink_options = dict(get("sink", "options", dict, {}))
+    sink_path = sink_options.get("path")
+    if isinstance(sink_path, str) and sink_path not in ("", "-") and "\0" not in sink_path:
+        # one rule for every path a configuration names: relative to the file
+        p = Path(sink_path)
+        sink_options["path"] = str(p if p.is_absolute() else path.parent / p)
 
     kind = get("filter", "kind", str, "one-euro")
     if kind not in ("one-euro", "none"):
@@ -204,10 +211,10 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
     base = TRACKER_FILTER_DEFAULTS.get(tracker, FilterConfig())
     filt = FilterConfig(
         kind,
-        positive("filter", "min_cutoff", base.min_cutoff),
-        positive("filter", "beta", base.beta, allow_zero=True),
-        positive("filter", "d_cutoff", base.d_cutoff),
-        positive("filter", "max_gap_s", base.max_gap_s, allow_zero=True),
+        positive("filter", "min_cutoff", base.min_cutoff, MAX_CUTOFF_HZ),
+        positive("filter", "beta", base.beta, MAX_BETA, allow_zero=True),
+        positive("filter", "d_cutoff", base.d_cutoff, MAX_CUTOFF_HZ),
+        positive("filter", "max_gap_s", base.max_gap_s, 3600.0, allow_zero=True),
     )
 
     button_spec = get("buttons", "input", str, "").strip()
@@ -224,8 +231,8 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
     buttons = ButtonsConfig(
         button_spec,
         get("buttons", "dwell", bool, False),
-        positive("buttons", "dwell_s", ButtonsConfig.dwell_s),
-        positive("buttons", "dwell_radius_px", ButtonsConfig.dwell_radius_px),
+        positive("buttons", "dwell_s", ButtonsConfig.dwell_s, 3600.0),
+        positive("buttons", "dwell_radius_px", ButtonsConfig.dwell_radius_px, 100_000.0),
         dwell_button,
         get("buttons", "release_when_lost", bool, True),
     )
@@ -249,11 +256,13 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
             f"must be 1 .. {MAX_QUEUE} frames, got {queue} (a camera's extra frames only add "
             "latency; a file waits for the tracker whatever the queue)",
         )
-    retry_initial = positive("daemon", "retry_initial_s", 0.5)
-    retry_max = positive("daemon", "retry_max_s", 10.0)
+    retry_initial = positive("daemon", "retry_initial_s", 0.5, 3600.0)
+    retry_max = positive("daemon", "retry_max_s", 10.0, 3600.0)
     if retry_max < retry_initial:
         raise fail("daemon.retry_max_s", "must be >= daemon.retry_initial_s")
     socket = Path(get("daemon", "socket", str, str(DEFAULT_SOCKET)))
+    if not socket.is_absolute():
+        socket = path.parent / socket
     return DaemonConfig(
         path=path,
         source=source,

@@ -53,6 +53,12 @@ COMMANDS: tuple[str, ...] = ("status", "pause", "resume", "reload")
 MAX_REQUEST_BYTES = 65536
 """A request line longer than this is refused and the connection closed."""
 
+MAX_CONNECTIONS = 32
+"""Connections served at once; one more gets an error reply and is closed at once."""
+
+MAX_NESTING = 32
+"""Deepest JSON nesting of a request (a request is one flat object)."""
+
 CLIENT_IDLE_TIMEOUT_S = 30.0
 """A connection silent for this long is closed (so a stuck client holds nothing)."""
 
@@ -64,6 +70,7 @@ __all__ = [
     "ControlError",
     "ControlServer",
     "Handler",
+    "check_free",
     "request",
 ]
 
@@ -93,6 +100,39 @@ def _encode(reply: dict[str, Any]) -> bytes:
 
 def _error(message: str) -> dict[str, Any]:
     return {"ok": False, "error": message}
+
+
+def _nesting(text: str) -> int:
+    """Deepest bracket nesting of ``text`` (strings not excluded: an upper bound)."""
+    depth = deepest = 0
+    for ch in text:
+        if ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
+
+
+def check_free(path: Path) -> None:
+    """Raise :class:`ControlError` if a live server answers on ``path`` (a second daemon must
+    stop before it opens its camera, tracker or sink) or ``path`` is not a socket."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise ControlError(f"control socket {path}: {exc.strerror}") from None
+    if not stat.S_ISSOCK(st.st_mode):
+        raise ControlError(
+            f"control socket {path}: the path exists and is not a socket; "
+            "remove it or configure another [daemon] socket"
+        )
+    if _live_server_at(path):
+        raise ControlError(
+            f"control socket {path}: another omnidevd already answers there "
+            "(stop it first, or configure another [daemon] socket)"
+        )
 
 
 def _live_server_at(path: Path) -> bool:
@@ -138,6 +178,7 @@ class ControlServer:
         self._handler_lock = threading.Lock()
         self._conns: set[socket.socket] = set()
         self._conns_lock = threading.Lock()
+        self.refused = 0  # connections refused for being over MAX_CONNECTIONS
 
     # -- lifecycle ---------------------------------------------------------
 
@@ -261,13 +302,33 @@ class ControlServer:
             conn.setblocking(True)
             conn.settimeout(CLIENT_IDLE_TIMEOUT_S)
             with self._conns_lock:
-                self._conns.add(conn)
+                busy = len(self._conns) >= MAX_CONNECTIONS
+                if not busy:
+                    self._conns.add(conn)
+            if busy:
+                self._refuse(conn)
+                continue
             threading.Thread(
                 target=self._serve_connection,
                 args=(conn,),
                 name="omnidev-control-conn",
                 daemon=True,
             ).start()
+
+    def _refuse(self, conn: socket.socket) -> None:
+        """Answer a connection over :data:`MAX_CONNECTIONS` with an error and close it."""
+        self.refused += 1
+        with contextlib.suppress(OSError):
+            conn.settimeout(0.5)
+            conn.sendall(
+                _encode(
+                    _error(
+                        f"too many control connections (at most {MAX_CONNECTIONS} at once); "
+                        "close idle ones and try again"
+                    )
+                )
+            )
+        conn.close()
 
     def _serve_connection(self, conn: socket.socket) -> None:
         buffer = b""
@@ -302,8 +363,11 @@ class ControlServer:
     def _reply(self, line: bytes) -> dict[str, Any]:
         """The reply to one request line; never raises."""
         try:
-            request_obj = json.loads(line.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            text = line.decode("utf-8")
+            if _nesting(text) > MAX_NESTING:
+                return _error(f"malformed request: JSON nested deeper than {MAX_NESTING} levels")
+            request_obj = json.loads(text)
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
             return _error(f"malformed request (expected one JSON object per line): {exc}")
         if not isinstance(request_obj, dict):
             return _error('malformed request: expected a JSON object like {"cmd": "status"}')
@@ -373,7 +437,9 @@ def request(path: Path, cmd: str, timeout: float = 2.0, **args: Any) -> dict[str
             raise ControlError(f"{path}: cannot connect: {exc.strerror or exc}") from None
         data = b""
         try:
-            sock.sendall(payload)
+            # a server refusing the connection has replied and closed: read that reply
+            with contextlib.suppress(BrokenPipeError, ConnectionResetError):
+                sock.sendall(payload)
             while b"\n" not in data:
                 chunk = sock.recv(65536)
                 if not chunk:

@@ -28,9 +28,9 @@ from typing import Any
 
 from omnidev.daemon import sdnotify
 from omnidev.daemon.config import DEFAULT_CONFIG, load_config
-from omnidev.daemon.control import ControlServer
+from omnidev.daemon.control import ControlError, ControlServer, check_free
 from omnidev.daemon.pipeline import Pipeline
-from omnidev.errors import OmnidevError
+from omnidev.errors import ConfigError, OmnidevError
 
 log = logging.getLogger("omnidevd")
 
@@ -46,7 +46,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--log-level", default="info", choices=("debug", "info", "warning", "error"), help="logging"
     )
     p.add_argument(
-        "--check", action="store_true", help="validate the configuration, open nothing, exit"
+        "--check",
+        action="store_true",
+        help="check the configuration as the start does (plugins, options, files, devices: "
+        "opened and closed again, the pointer never moves), then exit: 0 if it would start",
     )
 
 
@@ -57,7 +60,9 @@ class Daemon:
         self.config_path = config_path
         self.socket_override = socket
         self.config = load_config(config_path)
+        check_free(self.socket)  # a second daemon stops here, before it opens anything
         self.pipeline = Pipeline(self.config)
+        self._retired: list[tuple[float, ControlServer]] = []  # old sockets after a move
         self.stopping = threading.Event()
         self.reload_requested = threading.Event()
         self.server: ControlServer | None = None
@@ -83,18 +88,48 @@ class Daemon:
                 self.reload()
             except OmnidevError as exc:
                 return {"ok": False, "error": str(exc)}
-            return {"ok": True, "state": self.pipeline.state}
+            return {"ok": True, "state": self.pipeline.state, "socket": str(self.socket)}
         return {"ok": False, "error": f"unknown command {cmd!r} (status, pause, resume, reload)"}
 
     def reload(self) -> None:
+        """Apply the configuration file again; a new [daemon] socket is bound first, and if
+        it cannot be, nothing is applied (the error names the key)."""
         config = load_config(self.config_path)
-        self.pipeline.reload(config)
+        moved: ControlServer | None = None
+        if (
+            self.socket_override is None
+            and self.server is not None
+            and config.socket != self.config.socket
+        ):
+            moved = ControlServer(config.socket, self.handle)
+            try:
+                moved.start()
+            except ControlError as exc:
+                raise ConfigError(
+                    f"{self.config_path}: daemon.socket: cannot move the control socket to "
+                    f"{config.socket} ({exc}); the running configuration is kept"
+                ) from None
+        try:
+            self.pipeline.reload(config)
+        except BaseException:
+            if moved is not None:
+                moved.close()
+            raise
         self.config = config
+        if moved is not None and self.server is not None:
+            # the old socket closes a moment later, so that this reload's reply gets out
+            self._retired.append((time.monotonic() + 1.0, self.server))
+            self.server = moved
+            log.info("control socket moved to %s", config.socket)
 
     def run(self) -> int:
-        self.pipeline.start()
         self.server = ControlServer(self.socket, self.handle)
-        self.server.start()
+        try:
+            self.server.start()
+        except BaseException:
+            self.pipeline.stop()  # closes the sink and button input it opened
+            raise
+        self.pipeline.start()
         sdnotify.ready()
         log.info(
             "running: %s -> %s -> %s (control socket %s)",
@@ -109,6 +144,10 @@ class Daemon:
             while not self.stopping.is_set():
                 # wakes at once when the run ends by itself (a file ended or failed)
                 self.pipeline.finished.wait(0.2)
+                now = time.monotonic()
+                for due, old in [r for r in self._retired if r[0] <= now]:
+                    self._retired.remove((due, old))
+                    old.close()
                 if self.reload_requested.is_set():
                     self.reload_requested.clear()
                     try:
@@ -136,7 +175,10 @@ class Daemon:
         finally:
             sdnotify.stopping()
             self.pipeline.stop()
-            self.server.close()
+            for _, old in self._retired:
+                old.close()
+            if self.server is not None:
+                self.server.close()
             log.info("stopped: %s; all buttons released", self.pipeline.summary())
         return 0
 
@@ -152,7 +194,11 @@ def run_daemon(args: argparse.Namespace) -> int:
         stream=sys.stderr,
     )
     if args.check:
+        from omnidev.daemon.check import check_config
+
         config = load_config(args.config)
+        for line in check_config(config, args.socket):
+            print(f"  {line}")
         print(f"{args.config}: ok ({config.source} -> {config.tracker} -> {config.sink})")
         return 0
     daemon = Daemon(args.config, args.socket)

@@ -69,6 +69,10 @@ class Task:
     summarize: Summarize | None = None
     options: Mapping[str, Any] = field(default_factory=dict)
     headline: tuple[str, ...] = ()
+    choices: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    """The values a text option may take (checked by :func:`typed_options`)."""
+    ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    """The closed range of a number option (checked by :func:`typed_options`)."""
 
 
 def _num(v: float) -> float | None:
@@ -117,6 +121,18 @@ def typed_options(task: Task, given: Mapping[str, str]) -> dict[str, Any]:
         except ValueError:
             kind = type(default).__name__
             raise OmnidevError(f"task {task.name}: option {key}={text!r} is not a {kind}") from None
+        value = out[key]
+        if isinstance(value, float) and not math.isfinite(value):
+            raise OmnidevError(f"task {task.name}: option {key}={text!r} must be finite")
+        if key in task.choices and value not in task.choices[key]:
+            known = ", ".join(task.choices[key])
+            raise OmnidevError(f"task {task.name}: option {key}={text!r}; choose from {known}")
+        if key in task.ranges and not isinstance(value, bool):
+            lo, hi = task.ranges[key]
+            if not lo <= value <= hi:
+                raise OmnidevError(
+                    f"task {task.name}: option {key}={text!r} must be {lo:g}..{hi:g}"
+                )
     return out
 
 

@@ -118,6 +118,10 @@ def _model_errors(source: str) -> Iterator[None]:
         raise _fail(source, str(exc)) from None
 
 
+MAX_PARAMETER = 1e9
+"""Largest magnitude of any imported number (focal lengths in px and image sizes are far below)."""
+
+
 def _number(value: Any, source: str, key: str) -> float:
     """``value`` as a finite float; the error names ``key``."""
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
@@ -125,9 +129,14 @@ def _number(value: Any, source: str, key: str) -> float:
             value = value.reshape(-1)[0]
         else:
             raise _fail(source, f"key {key!r} is not a number ({value!r:.40})")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:  # an integer beyond float range
+        out = math.inf
     if not math.isfinite(out):
         raise _fail(source, f"key {key!r} is not finite")
+    if abs(out) > MAX_PARAMETER:
+        raise _fail(source, f"key {key!r} is {out:g}; no calibration parameter is that large")
     return out
 
 
@@ -155,7 +164,7 @@ def _numbers(value: Any, source: str, key: str, count: int | None = None) -> lis
 
 def _size(w: Any, h: Any, source: str, key: str) -> tuple[int, int]:
     wf, hf = _number(w, source, key), _number(h, source, key)
-    if wf != int(wf) or hf != int(hf) or wf < 1 or hf < 1:
+    if wf != int(wf) or hf != int(hf) or not (1 <= wf <= 65500 and 1 <= hf <= 65500):
         raise _fail(source, f"key {key!r}: image size {wf:g}x{hf:g} is not positive whole pixels")
     return int(wf), int(hf)
 
@@ -567,6 +576,8 @@ def _matrix(value: Any, source: str, key: str) -> FloatArray:
         raise _fail(source, f"key {key!r} is not a matrix")
     if not np.all(np.isfinite(arr)):
         raise _fail(source, f"key {key!r} has non-finite values")
+    if arr.size and float(np.max(np.abs(arr))) > MAX_PARAMETER:
+        raise _fail(source, f"key {key!r} has values beyond {MAX_PARAMETER:g}")
     return arr
 
 
@@ -681,13 +692,12 @@ def write_opencv(
 
 def read_text(path: Path) -> str:
     """The file's text; a missing or binary file is a CalibrationError naming it."""
-    path = Path(path)
-    if not path.is_file():
-        raise CalibrationError(f"{path}: calibration file not found")
-    try:
-        return path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read ({exc.__class__.__name__})") from None
+    from omnidev.inputfile import check_nesting
+    from omnidev.inputfile import read_text as read_input
+
+    text = read_input(Path(path), "calibration file", error=CalibrationError)
+    check_nesting(text, path, "calibration file", CalibrationError)
+    return text
 
 
 def read_yaml(path: Path) -> Any:
@@ -699,10 +709,9 @@ def read_yaml(path: Path) -> Any:
 
 
 def read_json(path: Path) -> Any:
-    try:
-        return json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise CalibrationError(f"{path}: not JSON (line {exc.lineno}: {exc.msg})") from None
+    from omnidev.inputfile import loads_json
+
+    return loads_json(read_text(path), path, "calibration file", CalibrationError)
 
 
 def _node_value(node: cv2.FileNode) -> Any:

@@ -148,7 +148,12 @@ def _dpoly(coeffs: tuple[float, ...] | FloatArray, x: FloatArray) -> FloatArray:
 
 def first_positive_root(coeffs: tuple[float, ...], upper: float = math.inf) -> float:
     """Smallest real root in (0, upper) of sum c_i x^i (ascending); ``upper`` if none."""
-    c = np.trim_zeros(np.asarray(coeffs, np.float64), "b")
+    c = np.asarray(coeffs, np.float64)
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"polynomial coefficients are not finite: {c.tolist()}")
+    scale = float(np.max(np.abs(c))) if c.size else 0.0
+    keep = np.nonzero(np.abs(c) > 1e-100 * scale)[0]  # denormal leading terms are zeros
+    c = c[: keep[-1] + 1] if keep.size else c[:0]
     if len(c) < 2:
         return upper
     roots = np.roots(c[::-1])

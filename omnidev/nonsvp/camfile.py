@@ -54,6 +54,10 @@ class NonSvpCameraModel:
     :func:`housing_blocks`.
     """
 
+    map_bytes_per_pixel = 100.0
+    """Peak bytes per output pixel of its maps (measured 59-80; see
+    :func:`omnidev.camera.map_bytes_per_pixel`)."""
+
     def __init__(self, camera: NonSvpCamera, housing_radius: float | None = None) -> None:
         self.camera = camera
         self.housing_radius = housing_radius

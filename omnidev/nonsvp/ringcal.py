@@ -393,7 +393,11 @@ def parse_points_csv(text: str, *, source: str) -> tuple[FloatArray, FloatArray]
     """
     uv: list[tuple[float, float]] = []
     xy: list[tuple[float, float]] = []
-    for row_no, row in enumerate(csv.reader(io.StringIO(text)), start=1):
+    try:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:
+        raise CalibrationError(f"{source}: not a CSV file ({exc})") from None
+    for row_no, row in enumerate(rows, start=1):
         cells = [c.strip() for c in row]
         if not cells or all(not c for c in cells) or cells[0].startswith("#"):
             continue
@@ -409,6 +413,8 @@ def parse_points_csv(text: str, *, source: str) -> tuple[FloatArray, FloatArray]
             raise CalibrationError(f"{source}: row {row_no}: not a number in {row!r}") from None
         if not all(math.isfinite(v) for v in vals):
             raise CalibrationError(f"{source}: row {row_no}: non-finite value in {row!r}")
+        if not all(abs(v) <= 1e6 for v in vals):
+            raise CalibrationError(f"{source}: row {row_no}: a value beyond 1e6 in {row!r}")
         uv.append((vals[0], vals[1]))
         xy.append((vals[2], vals[3]))
     if not uv:

@@ -50,6 +50,11 @@ Layout = Literal["bgr", "gray", "yuv420p", "yuvj420p"]
 LAYOUTS: tuple[Layout, ...] = ("bgr", "gray", "yuv420p", "yuvj420p")
 
 
+MAX_FPS = 1000.0
+"""Highest frame rate an output takes, frames per second (an encoder never returns for an
+infinite one)."""
+
+
 @dataclass(frozen=True)
 class OutputSpec:
     """What an output is opened for.
@@ -76,8 +81,8 @@ class OutputSpec:
         w, h = self.size
         if w < 1 or h < 1:
             raise ValueError(f"frame size must be positive, got {w}x{h}")
-        if not self.fps > 0:
-            raise ValueError(f"fps must be > 0, got {self.fps}")
+        if not 0 < self.fps <= MAX_FPS:
+            raise ValueError(f"fps must be in (0, {MAX_FPS:g}], got {self.fps}")
         bad = [x for x in self.layouts if x not in LAYOUTS]
         if bad or not self.layouts:
             raise ValueError(f"layouts must be some of {LAYOUTS}, got {self.layouts}")

@@ -20,8 +20,6 @@ untouched.
 from __future__ import annotations
 
 import contextlib
-import os
-import tempfile
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -29,7 +27,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from omnidev.atomic import check_output
+from omnidev.atomic import check_output, commit_temporary, make_temporary
 from omnidev.errors import OutputError
 from omnidev.frame import Frame
 from omnidev.outputs import OutputBase, OutputSpec, check_output_options, choose_layout
@@ -90,11 +88,7 @@ class FileOutput(OutputBase):
                     f"{self.path}: a {w}x{h} video: 4:2:0 video needs an even width and "
                     "height; make the view one pixel wider or taller"
                 )
-        fd, tmp = tempfile.mkstemp(
-            prefix=f".{self.path.stem}.", suffix=self.path.suffix, dir=self.path.parent or "."
-        )
-        os.close(fd)
-        self.tmp = Path(tmp)
+        self.tmp = make_temporary(self.path)
 
     @property
     def is_image(self) -> bool:
@@ -133,8 +127,8 @@ class FileOutput(OutputBase):
         w, h = self.spec.size
         codec = self._settings["codec"]
         pix_fmt = "yuvj420p" if self.layout == "yuvj420p" or codec == "mjpeg" else "yuv420p"
-        if codec == "ffv1":
-            pix_fmt = "yuv420p" if self.layout != "yuvj420p" else "yuvj420p"
+        if codec == "ffv1":  # FFmpeg's ffv1 takes no yuvj420p: full range is converted
+            pix_fmt = "yuv420p"
         try:
             self._container = av.open(
                 str(self.tmp), mode="w", format=VIDEO_CONTAINERS[self.path.suffix.lower()]
@@ -177,8 +171,7 @@ class FileOutput(OutputBase):
         if self.frames == 0:
             self.abort()
             raise OutputError(f"{self.path}: no frames to write")
-        os.chmod(self.tmp, 0o644)
-        os.replace(self.tmp, self.path)
+        commit_temporary(self.tmp, self.path, force=self.spec.force)
 
     def abort(self) -> None:
         self._release()

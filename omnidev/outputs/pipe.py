@@ -26,16 +26,14 @@ A reader that exits early is an :class:`OutputError` naming the frame.
 from __future__ import annotations
 
 import contextlib
-import os
 import stat
 import sys
-import tempfile
 from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
 
-from omnidev.atomic import check_output
+from omnidev.atomic import check_output, commit_temporary, make_temporary
 from omnidev.errors import OutputError
 from omnidev.frame import Frame
 from omnidev.outputs import Layout, OutputBase, OutputSpec, check_output_options, choose_layout
@@ -64,11 +62,9 @@ class PipeOutput(OutputBase):
                 self._fh = path.open("wb")  # blocks until a reader opens the FIFO
             else:
                 check_output(path, force=spec.force)
-                fd, tmp = tempfile.mkstemp(
-                    prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or "."
-                )
-                self._fh = os.fdopen(fd, "wb")
-                self._tmp, self._target = Path(tmp), path
+                tmp = make_temporary(path)
+                self._fh = tmp.open("wb")
+                self._tmp, self._target = tmp, path
             self._owns = True
 
     def _send(self, data: bytes | memoryview, frame: Frame) -> None:
@@ -95,9 +91,8 @@ class PipeOutput(OutputBase):
             if self.frames == 0:
                 self._tmp.unlink(missing_ok=True)
                 raise OutputError(f"{self.name}: no frames to write")
-            os.chmod(self._tmp, 0o644)
-            os.replace(self._tmp, self._target)
-            self._tmp = None
+            tmp, self._tmp = self._tmp, None
+            commit_temporary(tmp, self._target, force=self.spec.force)
 
     def abort(self) -> None:
         if self._owns:

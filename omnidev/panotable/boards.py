@@ -32,7 +32,6 @@ Rig file::
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,6 +42,7 @@ from numpy.typing import NDArray
 
 from omnidev.errors import CalibrationError
 from omnidev.fisheye.pattern import Pattern, parse_pattern
+from omnidev.inputfile import read_toml
 
 FloatArray = NDArray[np.float64]
 
@@ -120,28 +120,31 @@ class PlacedBoard:
         return cv2.aruco.CharucoBoard(p.squares, float(p.square_mm), float(p.marker_mm), d, ids)
 
 
+MAX_COORDINATE = 1e9
+"""Largest |coordinate| of a measured board corner (any unit)."""
+
+
 def _vec3(board: dict[str, Any], key: str, where: str) -> FloatArray:
     v = board.get(key)
     if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, int | float) for x in v)):
         raise CalibrationError(f"{where}: {key} must be [X, Y, Z] (numbers)")
+    if not all(math.isfinite(x) and abs(x) <= MAX_COORDINATE for x in v):
+        raise CalibrationError(f"{where}: {key} must be finite numbers within +-{MAX_COORDINATE:g}")
     return np.array(v, np.float64)
 
 
 def read_rig(path: Path) -> list[PlacedBoard]:
     """Read a board rig TOML file; errors name the file and the board."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CalibrationError(f"{path}: board rig file not found") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read the board rig ({exc})") from None
+    data = read_toml(path, "board rig file", error=CalibrationError)
     boards = data.get("board")
     if not isinstance(boards, list) or not boards:
         raise CalibrationError(f"{path}: no [[board]] tables")
     out = []
     for i, b in enumerate(boards, start=1):
         where = f"{path} board {i}"
+        if not isinstance(b, dict):
+            raise CalibrationError(f"{where}: must be a [[board]] table")
         unknown = sorted(set(b) - {"image", "pattern", "first_marker", "origin", "x_end", "y_end"})
         if unknown:
             raise CalibrationError(f"{where}: unknown key {unknown[0]!r}")

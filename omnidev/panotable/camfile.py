@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from omnidev.budget import check_pixels
 from omnidev.calibfile import open_storage, read_mat, read_real, read_string, write_storage
 from omnidev.camera import INVALID, BoolArray, FloatArray, Maps
 from omnidev.errors import CalibrationError
@@ -45,6 +46,9 @@ from omnidev.views import Panorama, View
 KIND = "pano-table"
 FORMAT_VERSION = 2
 READS = (1, 2)
+MAX_TABLE_SIDE = 32768
+REBUILD_BYTES_PER_ENTRY = 32.0
+"""Peak memory of loading (rebuilding) a table, bytes per entry (measured about 8; bound)."""
 
 
 def save_table(
@@ -132,6 +136,11 @@ def load_table(path: Path) -> PanoTable:
             raise CalibrationError(f"{path}: image_center must hold 2 values")
         M = int(read_real(fs, path, "M"))
         N = int(read_real(fs, path, "N"))
+        if not (1 <= M <= MAX_TABLE_SIDE and 1 <= N <= MAX_TABLE_SIDE):
+            raise CalibrationError(
+                f"{path}: table size M x N = {M} x {N}; each must be 1..{MAX_TABLE_SIDE}"
+            )
+        check_pixels(M, N, REBUILD_BYTES_PER_ENTRY, f"{path}: its {M}x{N} pano-mapping table")
         extra: dict[str, object] = {}
         if version >= 2:
             if not fs.getNode("aspect").empty():

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from omnidev.errors import CalibrationError
+from omnidev.inputfile import read_text
 
 COLUMNS = ("u", "v", "X", "Y", "Z")
 
@@ -30,16 +31,19 @@ class Landmarks:
     groups: NDArray[np.intp] | None = None
 
 
+MAX_VALUE = 1e9
+"""Largest |value| of a landmark coordinate (pixels or world units)."""
+
+
 def read_landmarks_csv(path: Path) -> Landmarks:
     """Read a landmark CSV; every error names the file and the line (and column)."""
     path = Path(path)
+    text = read_text(path, "landmark file", error=CalibrationError)
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise CalibrationError(f"{path}: landmark file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read landmark file ({exc})") from None
-    reader = csv.reader(text.splitlines())
+        lines = list(csv.reader(text.splitlines()))
+    except csv.Error as exc:
+        raise CalibrationError(f"{path}: not a CSV file ({exc})") from None
+    reader = iter(lines)
     header = next(reader, None)
     if header is None:
         raise CalibrationError(f"{path}: empty file; expected a header line u,v,X,Y,Z")
@@ -73,6 +77,10 @@ def read_landmarks_csv(path: Path) -> Landmarks:
                 ) from None
             if not math.isfinite(x):
                 raise CalibrationError(f"{path} line {lineno}: column {col} is not finite ({raw})")
+            if abs(x) > MAX_VALUE:
+                raise CalibrationError(
+                    f"{path} line {lineno}: column {col} is {raw}; |value| must be <= {MAX_VALUE:g}"
+                )
             row.append(x)
         if gi is not None:
             raw = fields[gi].strip()

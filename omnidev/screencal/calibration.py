@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from omnidev.budget import check_pixels
 from omnidev.calibfile import (
     check_header,
     open_storage,
@@ -541,6 +542,10 @@ def calibrate_screen(
     return fit_calibration(features, method)
 
 
+MAX_SIDE = 32768
+"""Largest image or screen side a calibration file may name, pixels."""
+
+
 def _int(fs: object, path: Path, key: str) -> int:
     return int(read_real(fs, path, key))  # type: ignore[arg-type]
 
@@ -561,6 +566,15 @@ def load_screen_calibration(path: Path) -> ScreenCalibration:
             raise CalibrationError(f"{path}: key 'method': unknown method {method!r}")
         image_size = (_int(fs, path, "image_width"), _int(fs, path, "image_height"))
         screen_size = (_int(fs, path, "screen_width"), _int(fs, path, "screen_height"))
+        for what, (w, h) in (("image", image_size), ("screen", screen_size)):
+            if not (1 <= w <= MAX_SIDE and 1 <= h <= MAX_SIDE):
+                raise CalibrationError(
+                    f"{path}: keys '{what}_width'/'{what}_height' = {w} x {h}; each must be "
+                    f"1..{MAX_SIDE} pixels"
+                )
+        check_pixels(
+            *image_size, 2.0, f"{path}: the masks of a {image_size[0]}x{image_size[1]} image"
+        )
         if version == 1:
             rows = cols = _int(fs, path, "n")
             try:

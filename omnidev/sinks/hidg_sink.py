@@ -298,6 +298,25 @@ def open_hidg(options: Mapping[str, Any], mapping: ScreenMapping) -> HidgSink:
     - ``timeout_ms``: longest wait for the host to take the previous report (default 20);
     - ``home``: relative mode only, push to the top-left corner first (default true).
     """
+    return HidgSink(mapping, **_settings(options))
+
+
+def check_hidg(options: Mapping[str, Any], mapping: ScreenMapping) -> str:
+    """What ``omnidev daemon --check`` checks: the options, and that the gadget node opens for
+    writing in the configured mode (closed again; no report is sent)."""
+    settings = _settings(options)
+    fd = HidgSink._open(settings["device"])
+    try:
+        _check_gadget_mode(settings["device"], os.fstat(fd).st_rdev, settings["mode"])
+    finally:
+        os.close(fd)
+    return f"hidg: {settings['device']} writable ({settings['mode']})"
+
+
+open_hidg.check = check_hidg  # type: ignore[attr-defined]
+
+
+def _settings(options: Mapping[str, Any]) -> dict[str, Any]:
     known = {"device", "mode", "timeout_ms", "home"}
     unknown = set(options) - known
     if unknown:
@@ -306,15 +325,15 @@ def open_hidg(options: Mapping[str, Any], mapping: ScreenMapping) -> HidgSink:
             f"(options: {', '.join(sorted(known))})"
         )
     device = options.get("device", DEFAULT_DEVICE)
-    if not isinstance(device, str) or not device:
+    if not isinstance(device, str) or not device or "\0" in device:
         raise SinkError("hidg sink: option 'device' must be a path such as /dev/hidg0")
     mode = options.get("mode", "absolute")
     if mode not in MODES:
         raise SinkError(f"hidg sink: option 'mode' is {mode!r}, not 'absolute' or 'relative'")
     timeout = options.get("timeout_ms", 20)
-    if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not timeout >= 0:
+    if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not 0 <= timeout <= 1e4:
         raise SinkError(f"hidg sink: option 'timeout_ms' is {timeout!r}, not a number >= 0")
     home = options.get("home", True)
     if not isinstance(home, bool):
         raise SinkError(f"hidg sink: option 'home' is {home!r}, not true or false")
-    return HidgSink(mapping, device=device, mode=mode, timeout_ms=float(timeout), home=home)
+    return {"device": device, "mode": mode, "timeout_ms": float(timeout), "home": home}

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 import time
 from collections.abc import Iterator, Mapping
@@ -30,12 +31,15 @@ from pathlib import Path
 from typing import IO, Any, Literal
 
 from omnidev.errors import SinkError
+from omnidev.inputfile import loads_json, read_text
 from omnidev.screen import ScreenMapping
 from omnidev.sinks.base import BUTTONS, PointerSink
 
 FORMAT = 2
 FORMATS_READ = (1, 2)
 Timing = Literal["frames", "written"]
+MAX_PAUSE_S = 5.0
+"""Longest pause a realtime replay keeps between two events, s."""
 
 
 class RecordSink(PointerSink):
@@ -89,15 +93,40 @@ class RecordSink(PointerSink):
             self._fh.close()
 
 
-def open_record(options: Mapping[str, Any], mapping: ScreenMapping) -> RecordSink:
-    """Entry point: options ``path`` (a file, appended to; ``-`` for stdout)."""
+def _record_path(options: Mapping[str, Any]) -> str:
     unknown = set(options) - {"path"}
     if unknown:
         raise SinkError(f"record sink: unknown option {sorted(unknown)[0]!r} (options: path)")
     path = options.get("path")
-    if not isinstance(path, str) or not path:
+    if not isinstance(path, str) or not path or "\0" in path:
         raise SinkError("record sink: option 'path' (a file, or - for stdout) is required")
-    return RecordSink(path, mapping)
+    return path
+
+
+def open_record(options: Mapping[str, Any], mapping: ScreenMapping) -> RecordSink:
+    """Entry point: options ``path`` (a file, appended to; ``-`` for stdout)."""
+    return RecordSink(_record_path(options), mapping)
+
+
+def check_record(options: Mapping[str, Any], mapping: ScreenMapping) -> str:
+    """What ``omnidev daemon --check`` checks: the options, and that ``path`` can be appended
+    to (its folder exists and is writable, it is not a folder); nothing is written."""
+    path = _record_path(options)
+    if path == "-":
+        return "record: JSON lines to standard output"
+    p = Path(path)
+    if p.is_dir():
+        raise SinkError(f"record sink: path {path} is a folder; give a file name")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise SinkError(f"record sink: path {path}: folder {parent} does not exist")
+    writable = os.access(p, os.W_OK) if p.exists() else os.access(parent, os.W_OK | os.X_OK)
+    if not writable:
+        raise SinkError(f"record sink: path {path} is not writable by this user")
+    return f"record: appends JSON lines to {path}"
+
+
+open_record.check = check_record  # type: ignore[attr-defined]
 
 
 def _is_int(value: Any) -> bool:
@@ -136,32 +165,24 @@ def _check_event(event: dict[str, Any], where: str) -> None:
 
 
 def read_events(path: str | Path) -> Iterator[dict[str, Any]]:
-    """The events of a recording (format 1 or 2), checked line by line.
+    """The events of a recording (format 1 or 2), checked line by line: every field a
+    replay uses is there and of its type (:func:`_check_event`).
 
-    A malformed line raises a :class:`SinkError` naming the file and line.
+    A malformed line raises a :class:`SinkError` naming the file and line; the file is
+    read through :func:`omnidev.inputfile.read_text` (no folders, devices, huge files or
+    non-UTF-8 bytes).
     """
-    try:
-        fh = open(path, encoding="utf-8")  # noqa: SIM115 - closed below; iterated lazily
-    except OSError as exc:
-        raise SinkError(f"{path}: cannot read: {exc.strerror}") from None
-    with fh:
-        lineno = 0
-        try:
-            for lineno, line in enumerate(fh, 1):
-                if not line.strip():
-                    continue
-                try:
-                    event = json.loads(line)
-                except (json.JSONDecodeError, RecursionError) as exc:
-                    msg = exc.msg if isinstance(exc, json.JSONDecodeError) else "nested too deeply"
-                    raise SinkError(f"{path}: line {lineno}: not JSON ({msg})") from None
-                kind = event.get("kind") if isinstance(event, dict) else None
-                if kind not in ("open", "move", "button", "close") or "t_ns" not in event:
-                    raise SinkError(f"{path}: line {lineno}: not a pointer event")
-                _check_event(event, f"{path}: line {lineno}")
-                yield event
-        except UnicodeDecodeError:
-            raise SinkError(f"{path}: line {lineno + 1}: not UTF-8 text") from None
+    text = read_text(path, "pointer recording (JSON lines)", error=SinkError)
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        where = f"{path}: line {lineno}"
+        event = loads_json(line, where, "pointer event", SinkError)
+        kind = event.get("kind") if isinstance(event, dict) else None
+        if kind not in ("open", "move", "button", "close") or "t_ns" not in event:
+            raise SinkError(f"{where}: not a pointer event (kind open, move, button or close)")
+        _check_event(event, where)
+        yield event
 
 
 def schedule_ns(events: list[dict[str, Any]], timing: Timing = "frames") -> list[int]:
@@ -205,11 +226,18 @@ def replay(
     """Send a recording's moves and buttons to ``sink``; returns the events sent.
 
     With ``realtime`` the original pace is kept (``timing``: see
-    :func:`schedule_ns`). Buttons still down at the end are released (the sink's
-    close does it too). The whole recording is checked before the first event.
+    :func:`schedule_ns`), except that a pause longer than :data:`MAX_PAUSE_S` is cut
+    to that (a recording that sat idle, or a clock jump, does not freeze the
+    replay). Buttons still down at the end are released (the sink's close does it
+    too). The whole recording is checked before the first event.
     """
     events = [e for e in read_events(path) if e["kind"] in ("move", "button")]
-    at = schedule_ns(events, timing)
+    at: list[int] = []
+    cut = prev = 0
+    for due in schedule_ns(events, timing):
+        cut += max(0, due - prev - int(MAX_PAUSE_S * 1e9))
+        at.append(due - cut)
+        prev = due
     sent = 0
     t0 = time.monotonic_ns()
     for event, due in zip(events, at, strict=True):

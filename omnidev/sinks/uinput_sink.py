@@ -235,7 +235,7 @@ def _parse_screen_mm(value: Any) -> tuple[float, float]:
             w, h = (float(v) for v in value)
     except (TypeError, ValueError):
         w = h = 0.0
-    if not (w > 0 and h > 0):
+    if not (0 < w < 1e5 and 0 < h < 1e5):
         raise SinkError(f"uinput sink: screen_mm={value!r} must be WxH in mm (e.g. 527x296)")
     return w, h
 
@@ -249,13 +249,28 @@ def open_uinput(options: Mapping[str, Any], mapping: ScreenMapping) -> UinputSin
     - ``screen_mm``: the target screen's size ``WxH`` in mm, from which the
       resolution is computed when ``resolution`` is not given.
     """
+    return UinputSink(mapping, **_settings(options, mapping))
+
+
+def check_uinput(options: Mapping[str, Any], mapping: ScreenMapping) -> str:
+    """What ``omnidev daemon --check`` checks: the options, and that the uinput node opens
+    for writing (no device is created, nothing moves)."""
+    settings = _settings(options, mapping)
+    os.close(open_uinput_node(settings["device"]))
+    return f"uinput: {settings['device']} writable"
+
+
+open_uinput.check = check_uinput  # type: ignore[attr-defined]
+
+
+def _settings(options: Mapping[str, Any], mapping: ScreenMapping) -> dict[str, Any]:
     unknown = set(options) - set(OPTIONS)
     if unknown:
         raise SinkError(
             f"uinput sink: unknown option {sorted(unknown)[0]!r} (options: {', '.join(OPTIONS)})"
         )
     for key in ("device", "name", "phys"):
-        if key in options and not isinstance(options[key], str):
+        if key in options and (not isinstance(options[key], str) or "\0" in options[key]):
             raise SinkError(f"uinput sink: option {key!r} must be a string")
     if "resolution" in options:
         res = options["resolution"]
@@ -268,10 +283,9 @@ def open_uinput(options: Mapping[str, Any], mapping: ScreenMapping) -> UinputSin
         resolution = resolution_for(mapping, _parse_screen_mm(options["screen_mm"]))
     else:
         resolution = (DEFAULT_RESOLUTION, DEFAULT_RESOLUTION)
-    return UinputSink(
-        mapping,
-        device=options.get("device", DEFAULT_DEVICE),
-        name=options.get("name", DEFAULT_NAME),
-        phys=options.get("phys", DEFAULT_PHYS),
-        resolution=resolution,
-    )
+    return {
+        "device": options.get("device", DEFAULT_DEVICE),
+        "name": options.get("name", DEFAULT_NAME),
+        "phys": options.get("phys", DEFAULT_PHYS),
+        "resolution": resolution,
+    }

@@ -186,6 +186,27 @@ class XtestSink(PointerSink):
 
 def open_xtest(options: Mapping[str, Any], mapping: ScreenMapping) -> XtestSink:
     """Entry point: options ``display`` (default ``$DISPLAY``), ``screen`` (X screen number)."""
+    display, screen = _settings(options)
+    return XtestSink(mapping, display=display, screen=screen)
+
+
+def check_xtest(options: Mapping[str, Any], mapping: ScreenMapping) -> str:
+    """What ``omnidev daemon --check`` checks: the options, and that the X display opens and
+    has the screen (the connection is closed again; nothing moves)."""
+    display, screen = _settings(options)
+    name = _display_name(display)
+    d = _open_display(name)
+    try:
+        s = _screen(d, name, screen)
+        return f"xtest: X display {name} ({s.width_in_pixels}x{s.height_in_pixels})"
+    finally:
+        d.close()
+
+
+open_xtest.check = check_xtest  # type: ignore[attr-defined]
+
+
+def _settings(options: Mapping[str, Any]) -> tuple[str | None, int | None]:
     unknown = set(options) - set(OPTIONS)
     if unknown:
         raise SinkError(
@@ -201,4 +222,4 @@ def open_xtest(options: Mapping[str, Any], mapping: ScreenMapping) -> XtestSink:
         isinstance(screen, bool) or not isinstance(screen, int) or screen < 0
     ):
         raise SinkError(f"xtest sink: option 'screen' must be a screen number >= 0, not {screen!r}")
-    return XtestSink(mapping, display=display, screen=screen)
+    return display, screen

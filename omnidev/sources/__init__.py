@@ -98,6 +98,34 @@ def split_uri(uri: str) -> tuple[str, str, dict[str, str]]:
     return scheme.lower(), rest, options
 
 
+FILE_SCHEMES = ("video", "images")
+"""Schemes whose rest is a path of the file system (relative paths can be resolved)."""
+
+
+def resolve_uri(uri: str, base: Path) -> str:
+    """``uri`` with a relative file path made relative to folder ``base`` instead of the
+    current directory: the rule for paths in rig files and daemon configurations (a path
+    is relative to the file that names it).
+
+    >>> resolve_uri("video:clips/a.avi?loop=1", Path("/etc/omnidev"))
+    'video:/etc/omnidev/clips/a.avi?loop=1'
+    >>> resolve_uri("v4l2:/dev/video0", Path("/etc/omnidev"))
+    'v4l2:/dev/video0'
+    >>> resolve_uri("omni.png", Path("/data"))
+    '/data/omni.png'
+    """
+    scheme, sep, rest = uri.partition(":")
+    bare = not sep or "/" in scheme or "." in scheme or len(scheme) < 2
+    if bare:
+        return uri if not uri or Path(uri).is_absolute() else str(base / uri)
+    if scheme.lower() not in FILE_SCHEMES:
+        return uri
+    path, q, query = rest.partition("?")
+    if not path or Path(path).is_absolute():
+        return uri
+    return f"{scheme}:{base / path}{q}{query}"
+
+
 def _bare(path: str) -> str:
     """The scheme of a bare path.
 

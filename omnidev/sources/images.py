@@ -13,11 +13,11 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from omnidev.errors import FileSourceError, SourceError
 from omnidev.frame import Frame
+from omnidev.imagefile import read_image
 from omnidev.sources import IMAGE_SUFFIXES, SourceBase, check_options
 
 DEFAULT_FPS = 30.0
@@ -52,10 +52,14 @@ class ImageSource(SourceBase):
 
     def __iter__(self) -> Iterator[Frame]:
         for index, f in enumerate(self.files):
-            image = cv2.imread(str(f), cv2.IMREAD_COLOR)
-            if image is None:
+            try:
+                image = read_image(f, "image", error=FileSourceError)
+            except FileSourceError as exc:
                 last = f"last good frame {index - 1}" if index else "no frame read"
-                raise FileSourceError(f"{self.name}: cannot read image {f} (frame {index}); {last}")
+                why = str(exc).removeprefix(f"{f}: ")
+                raise FileSourceError(
+                    f"{self.name}: cannot read image {f} (frame {index}); {last}: {why}"
+                ) from None
             stamp = round(index * self._period_ns)
             yield Frame(np.asarray(image, np.uint8), stamp, index, time.monotonic_ns())
 

@@ -20,6 +20,8 @@ from omnidev.errors import SourceError
 from omnidev.frame import Frame
 from omnidev.sources import SourceBase, check_options
 
+V4L2_MAJOR = 81
+"""The character-device major number of video4linux nodes."""
 OPTIONS = {"width", "height", "fps", "fourcc", "buffers"}
 
 
@@ -40,16 +42,21 @@ def parse_v4l2_options(uri: str, options: dict[str, str]) -> dict[str, int | flo
                 value = int(options[key])
             except ValueError:
                 value = 0
-            if value <= 0:
-                raise SourceError(f"{uri}: {key}={options[key]!r} must be a positive integer")
+            limit = 64 if key == "buffers" else 16384
+            if not 0 < value <= limit:
+                raise SourceError(
+                    f"{uri}: {key}={options[key]!r} must be a positive integer up to {limit}"
+                )
             out[key] = value
     if "fps" in options:
         try:
             fps = float(options["fps"])
         except ValueError:
             fps = 0.0
-        if not fps > 0:
-            raise SourceError(f"{uri}: fps={options['fps']!r} must be a positive number")
+        if not 0 < fps <= 1000:
+            raise SourceError(
+                f"{uri}: fps={options['fps']!r} must be a positive number, at most 1000"
+            )
         out["fps"] = fps
     if "fourcc" in options:
         if len(options["fourcc"]) != 4:
@@ -115,3 +122,21 @@ class V4L2Source(SourceBase):
 def open_v4l2(rest: str, options: dict[str, str]) -> V4L2Source:
     uri = f"v4l2:{rest}"
     return V4L2Source(rest, parse_v4l2_options(uri, options))
+
+
+def check_v4l2(rest: str, options: dict[str, str]) -> str:
+    """What ``omnidev daemon --check`` checks: the options; the node, if present, is a
+    character device this user may open (an absent camera is only reported)."""
+    uri = f"v4l2:{rest}"
+    parse_v4l2_options(uri, options)
+    node = Path(rest)
+    if not node.exists():
+        return f"{uri}: not present now (the daemon waits for the camera)"
+    if not node.is_char_device() or os.major(node.stat().st_rdev) != V4L2_MAJOR:
+        raise SourceError(f"{uri}: {rest} is not a V4L2 device node")
+    if not os.access(node, os.R_OK | os.W_OK):
+        raise SourceError(f"{uri}: permission denied; add the user to group 'video'")
+    return f"{uri}: device present"
+
+
+open_v4l2.check = check_v4l2  # type: ignore[attr-defined]

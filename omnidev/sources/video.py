@@ -35,7 +35,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from omnidev.errors import FileSourceError, SourceError
+from omnidev.budget import check_pixels
+from omnidev.errors import FileSourceError, OmnidevError, SourceError
 from omnidev.frame import Frame
 from omnidev.sources import SourceBase, check_options
 
@@ -81,6 +82,15 @@ class OpenCVDecoder:
         self._cap = cv2.VideoCapture(str(path))
         if not self._cap.isOpened():
             raise FileSourceError(f"{name}: OpenCV cannot read this file as a video")
+        w, h = (
+            int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
+            int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT)),
+        )
+        try:
+            check_pixels(w, h, 12, f"{name}: decoding {w}x{h} frames")
+        except OmnidevError:
+            self._cap.release()
+            raise
         n = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT))
         self.frame_count: int | None = n if n > 0 else None
         fps = float(self._cap.get(cv2.CAP_PROP_FPS))

@@ -177,10 +177,12 @@ def test_bgr24_read_by_v4l2_ctl_byte_for_byte(clip: Clip, tmp_path: Path, vm_fig
 def test_yuyv_read_by_ffmpeg(clip: Clip, tmp_path: Path, vm_figures) -> None:
     _loopback()
     raw = tmp_path / "read.yuyv"
+    # -fps_mode passthrough: each frame once (the rawvideo muxer's default, constant frame
+    # rate, duplicates frames to fill the gaps of a writer slower than the device's rate)
     reader = [
         "ffmpeg", "-hide_banner", "-loglevel", "error", "-f", "v4l2", "-input_format",
-        "yuyv422", "-i", NODE, "-frames:v", str(K), "-c:v", "rawvideo", "-f", "rawvideo",
-        "-y", str(raw),
+        "yuyv422", "-i", NODE, "-frames:v", str(K), "-fps_mode", "passthrough", "-c:v",
+        "rawvideo", "-f", "rawvideo", "-y", str(raw),
     ]  # fmt: skip
     _stream(clip, "yuyv", reader, tmp_path)
     data = raw.read_bytes()

@@ -31,9 +31,11 @@ counts ``other.spot``, ``other.hit``, ``other.off``, ``other.false``), ``frames`
 (per scene, 30 fps), and the detector's
 keyword options as ``--opt KEY=VALUE`` for the ``colour`` method's tuning
 (``saturated``, ``halo``, ``colour_ratio``, ``track_px``, ``busy_gain``,
-``max_darker``, ``min_cross``, ``busy_events``, ``position``), and ``cache`` (a directory:
-rendered frames are kept there and reused, so methods compared on the same scenes
-are rendered once; the frames depend only on the seed and ``frames``).
+``max_darker``, ``min_cross``, ``busy_events``, ``position``, ``new_margin``,
+``confirm``), and
+``cache`` (a directory: rendered frames are kept there and reused, so methods
+compared on the same scenes are rendered once; the frames depend only on the seed
+and ``frames``).
 """
 
 from __future__ import annotations
@@ -64,7 +66,7 @@ FILTERS: dict[str, tuple[float, float, float, float | None]] = {
 # the colour detector's options the task passes on (unset: -1 or "")
 _DETECTOR_OPTIONS = (
     "saturated", "halo", "colour_ratio", "track_px", "busy_gain", "max_darker", "min_cross",
-    "busy_events", "position",
+    "busy_events", "position", "new_margin", "confirm",
 )  # fmt: skip
 _COUNTS = ("spot", "hit", "far", "missed", "off", "false", "hidden", "refused")
 
@@ -317,6 +319,8 @@ TASK = Task(
         "max_darker": -1.0,
         "min_cross": -1.0,
         "busy_events": -1,
+        "new_margin": -1,
+        "confirm": -1,
         "position": "",
         "cache": "",
     },

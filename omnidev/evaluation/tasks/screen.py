@@ -303,6 +303,8 @@ TASK = Task(
     run_scene=run_scene,
     summarize=summarize,
     options={"layout": "random", "frames_per_still": 3, "border": "region", "coded": True},
+    choices={"layout": ("random", "default"), "border": ("region", "tdm")},
+    ranges={"frames_per_still": (1, 30)},
     headline=(
         "radial.rms",
         "coded.radial.rms",

@@ -14,6 +14,7 @@ Options (the daemon's ``[tracker.options]``):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -83,7 +84,13 @@ def _int(options: Mapping[str, Any], key: str, default: int | None) -> int | Non
     value = options.get(key, default)
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, int | float) or value != int(value):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not math.isfinite(value)
+        or value != int(value)
+        or abs(value) > 1e9
+    ):
         raise TrackerError(f"bright-blob: option {key} must be an integer, got {value!r}")
     return int(value)
 

@@ -43,9 +43,7 @@ pixel-centre convention (0 and 1 are the centres of the first and last pixel).
 
 from __future__ import annotations
 
-import json
 import math
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -55,6 +53,7 @@ from numpy.typing import NDArray
 
 from omnidev import Frame, PointerSample
 from omnidev.errors import ConfigError, TrackerError
+from omnidev.inputfile import loads_json, loads_toml, read_text
 from omnidev.mouse.detect import detect_landmarks, to_gray
 from omnidev.mouse.geometry import (
     Lens,
@@ -257,14 +256,12 @@ def _plausible(
 
 def load_layout(path: Path) -> LandmarkLayout:
     """The landmark layout of a JSON or TOML file; errors name the file and key."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise TrackerError(f"camera-mouse: cannot read {path}: {exc.strerror}") from None
-    try:
-        data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        raise TrackerError(f"camera-mouse: {path}: not valid {path.suffix[1:]}: {exc}") from None
+    what = "camera-mouse landmark layout"
+    text = read_text(path, what, error=TrackerError)
+    if path.suffix == ".toml":
+        data = loads_toml(text, path, what, TrackerError)
+    else:
+        data = loads_json(text, path, what, TrackerError)
     try:
         return LandmarkLayout.from_dict(data)
     except ConfigError as exc:

@@ -1,0 +1,227 @@
+"""Reading the files a user names: size limits, and one-line errors for what is not a file.
+
+Every reader of a user's text file (rig files, daemon configurations, landmark
+CSVs, layouts, point files, recordings, other tools' calibrations) goes
+through :func:`read_text` or :func:`read_bytes`, so that each of them says the
+same thing, naming the file, for a folder, a symlink loop, a device such as
+/dev/zero, an unreadable file, a file far too large to be what it claims, or
+bytes that are not UTF-8 text; and none of them reads without end.
+
+The errors are of the class the caller passes (``error=ConfigError`` for a
+daemon configuration, ...), so the CLI prints them as one line.
+
+>>> import tempfile, pathlib
+>>> p = pathlib.Path(tempfile.mkdtemp()) / "x.toml"
+>>> _ = p.write_bytes(b"name = 'caf\\xe9'\\n")
+>>> try:
+...     read_text(p, "rig file")
+... except OmnidevError as exc:
+...     print(str(exc).split(": ", 1)[1])
+cannot read the rig file: line 1, column 12 is not UTF-8 text (byte 0xe9); save it as UTF-8
+"""
+
+from __future__ import annotations
+
+import errno
+import gzip
+import io
+import json
+import os
+import stat
+import tomllib
+import zlib
+from pathlib import Path
+from typing import Any
+
+from omnidev.errors import OmnidevError
+
+MAX_TEXT_BYTES = 64 << 20
+"""Largest text input file read (64 MiB): far above any real rig, config, CSV or calibration."""
+
+MAX_NESTING = 64
+"""Deepest nesting of lists/tables accepted in a JSON or TOML document."""
+
+
+def _describe_size(n: int) -> str:
+    return f"{n / (1 << 20):.0f} MiB" if n >= 1 << 20 else f"{n} bytes"
+
+
+def _open_error(path: Path, what: str, exc: OSError, error: type[OmnidevError]) -> OmnidevError:
+    if exc.errno == errno.ENOENT:
+        if os.path.islink(path):
+            return error(f"{path}: {what} not found (a symlink to {os.readlink(path)!r}, absent)")
+        return error(f"{path}: {what} not found")
+    if exc.errno == errno.ELOOP:
+        return error(f"{path}: {what} is a symlink loop")
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        return error(f"{path}: permission denied reading the {what}")
+    if exc.errno == errno.EISDIR:
+        return error(f"{path}: is a folder, not a {what}")
+    return error(f"{path}: cannot read the {what}: {exc.strerror or exc}")
+
+
+def read_bytes(
+    path: Path | str,
+    what: str,
+    *,
+    error: type[OmnidevError] = OmnidevError,
+    limit: int = MAX_TEXT_BYTES,
+) -> bytes:
+    """The bytes of ``path``, at most ``limit``; an :class:`OmnidevError` of class ``error``
+    (naming the file and ``what`` it should be) for a folder, a symlink loop, a device,
+    a FIFO, a missing or unreadable file, or more than ``limit`` bytes."""
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as exc:
+        raise _open_error(path, what, exc, error) from None
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise error(f"{path}: is a folder, not a {what}")
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not"
+            raise error(f"{path}: is {kind} a regular file; give the {what} as a file")
+        if st.st_size > limit:
+            raise error(
+                f"{path}: {_describe_size(st.st_size)}, larger than any {what} "
+                f"(limit {_describe_size(limit)})"
+            )
+        chunks = []
+        total = 0
+        while True:
+            try:
+                chunk = os.read(fd, 1 << 20)
+            except OSError as exc:
+                raise _open_error(path, what, exc, error) from None
+            if not chunk:
+                break
+            total += len(chunk)
+            if total > limit:  # a file that grows while it is read
+                raise error(f"{path}: larger than any {what} (limit {_describe_size(limit)})")
+            chunks.append(chunk)
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
+
+
+def decode_utf8(data: bytes, path: Path | str, what: str, error: type[OmnidevError]) -> str:
+    """``data`` as UTF-8 (a leading byte-order mark dropped); the error names line and column."""
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        start = 3 if data.startswith(b"\xef\xbb\xbf") else 0
+        before = data[start : exc.start]
+        line = before.count(b"\n") + 1
+        column = exc.start - (before.rfind(b"\n") + 1 + start) + 1
+        raise error(
+            f"{path}: cannot read the {what}: line {line}, column {column} is not UTF-8 text "
+            f"(byte 0x{data[exc.start]:02x}); save it as UTF-8"
+        ) from None
+
+
+def read_text(
+    path: Path | str,
+    what: str,
+    *,
+    error: type[OmnidevError] = OmnidevError,
+    limit: int = MAX_TEXT_BYTES,
+) -> str:
+    """The UTF-8 text of ``path`` (see :func:`read_bytes`); NUL bytes are refused too."""
+    data = read_bytes(path, what, error=error, limit=limit)
+    text = decode_utf8(data, path, what, error)
+    nul = text.find("\0")
+    if nul >= 0:
+        line = text.count("\n", 0, nul) + 1
+        raise error(f"{path}: line {line}: a NUL byte; this is not a {what} (a binary file?)")
+    return text
+
+
+def _depth(text: str, opens: str, closes: str) -> int:
+    """Deepest bracket nesting of ``text``, ignoring quoted strings roughly (an upper bound)."""
+    depth = deepest = 0
+    for ch in text:
+        if ch in opens:
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in closes:
+            depth -= 1
+    return deepest
+
+
+def check_nesting(text: str, path: Path | str, what: str, error: type[OmnidevError]) -> None:
+    """Refuse a document nested deeper than :data:`MAX_NESTING` (parsers recurse per level)."""
+    if _depth(text, "[{", "]}") > MAX_NESTING:
+        raise error(f"{path}: nested deeper than {MAX_NESTING} levels; not a {what}")
+
+
+def loads_toml(
+    text: str, path: Path | str, what: str, error: type[OmnidevError] = OmnidevError
+) -> dict[str, Any]:
+    """Parse TOML text; a syntax error or absurd nesting is one line naming the file."""
+    check_nesting(text, path, what, error)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path}: not valid TOML ({exc})") from None
+    except RecursionError:
+        raise error(f"{path}: nested too deeply; not a {what}") from None
+
+
+def read_toml(
+    path: Path | str, what: str, *, error: type[OmnidevError] = OmnidevError
+) -> dict[str, Any]:
+    """:func:`read_text` then :func:`loads_toml`."""
+    return loads_toml(read_text(path, what, error=error), path, what, error)
+
+
+def loads_json(
+    text: str, path: Path | str, what: str, error: type[OmnidevError] = OmnidevError
+) -> Any:
+    """Parse JSON text; NaN and Infinity are refused (JSON has neither), as is deep nesting."""
+    check_nesting(text, path, what, error)
+
+    def constant(name: str) -> float:
+        raise error(f"{path}: {name} is not a JSON number; not a valid {what}")
+
+    try:
+        return json.loads(text, parse_constant=constant)
+    except json.JSONDecodeError as exc:
+        raise error(
+            f"{path}: not JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})"
+        ) from None
+    except RecursionError:
+        raise error(f"{path}: nested too deeply; not a {what}") from None
+
+
+def read_json(path: Path | str, what: str, *, error: type[OmnidevError] = OmnidevError) -> Any:
+    """:func:`read_text` then :func:`loads_json`."""
+    return loads_json(read_text(path, what, error=error), path, what, error)
+
+
+def read_gzip(
+    path: Path | str,
+    what: str,
+    *,
+    error: type[OmnidevError] = OmnidevError,
+    limit: int = MAX_TEXT_BYTES,
+) -> bytes:
+    """The inflated bytes of a ``.gz`` file; refuse one that is corrupt or inflates past
+    ``limit`` bytes, so that a compressed bomb never reaches a reader (cv2.FileStorage)
+    that would inflate all of it into memory."""
+    data = read_bytes(path, what, error=error, limit=limit)  # a file at all, and not huge
+    out = []
+    total = 0
+    try:
+        with gzip.GzipFile(fileobj=io.BytesIO(data)) as fh:
+            while chunk := fh.read(1 << 20):
+                total += len(chunk)
+                if total > limit:
+                    raise error(
+                        f"{path}: inflates to more than {_describe_size(limit)}; "
+                        f"larger than any {what}"
+                    )
+                out.append(chunk)
+    except (OSError, EOFError, zlib.error) as exc:
+        raise error(f"{path}: not a readable gzip file ({exc})") from None
+    return b"".join(out)
