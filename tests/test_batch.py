@@ -281,7 +281,9 @@ def test_interrupted_job_reruns_only_missing_ranges(batch, cluster, capsys):
     cmd = [sys.executable, "-m", "omnidev.cli.main", *argv]
     job = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        _wait_for(lambda: len(_journal_ranges(out)) >= 3)
+        # the first finished range: later, on a quiet machine the job could finish the
+        # remaining ranges (0.2 s each here) before the signal lands
+        _wait_for(lambda: len(_journal_ranges(out)) >= 1, timeout_s=120.0)
         job.send_signal(signal.SIGINT)
         _, err = job.communicate(timeout=60)
     finally:
@@ -297,7 +299,7 @@ def test_interrupted_job_reruns_only_missing_ranges(batch, cluster, capsys):
     total = sum(u["ranges"] for u in videos)
     run_now = sum(u["ranges_run"] for u in videos)
     had = sum(u["ranges_before"] for u in videos)
-    assert 3 <= len(before) < total and had == len(before)
+    assert 1 <= len(before) < total and had == len(before)
     assert run_now == total - had  # only the missing ranges ran
     after = _journal_ranges(out)
     again = [(r["unit"], r["range"]) for r in after if (r["unit"], r["range"]) in before]
