@@ -373,21 +373,7 @@ def project(
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """World points X (..., 3) -> distorted pixels (..., 2) and whether each is in the
     picture (in front, within the radius the image covers, inside the image)."""
-    Xc = (X - C) @ R.T
-    z = Xc[..., 2]
-    front = z > 1e-9
-    xy = Xc[..., :2] / np.where(front, z, 1.0)[..., None]
-    uv = cam.normalized_to_pixel(xy)
-    r = np.linalg.norm(xy, axis=-1)
-    inside = (
-        front
-        & (r <= _max_radius(cam))
-        & (uv[..., 0] >= -0.5)
-        & (uv[..., 0] <= cam.width - 0.5)
-        & (uv[..., 1] >= -0.5)
-        & (uv[..., 1] <= cam.height - 0.5)
-    )
-    return uv, inside
+    return _camera_to_pixels(cam, (X - C) @ R.T)
 
 
 def _project_many(
@@ -395,7 +381,12 @@ def _project_many(
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """:func:`project` with one pose per point: C (m, 3) or (m, 1, 3), R (m, 3, 3) or
     (m, 1, 3, 3), X (m, 3) or (m, k, 3)."""
-    Xc = np.einsum("...ij,...j->...i", R, X - C)
+    return _camera_to_pixels(cam, np.einsum("...ij,...j->...i", R, X - C))
+
+
+def _camera_to_pixels(cam: HandCamera, Xc: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Camera-frame points Xc (..., 3) -> distorted pixels and whether each is in the
+    picture (the second half of :func:`project`)."""
     z = Xc[..., 2]
     front = z > 1e-9
     xy = Xc[..., :2] / np.where(front, z, 1.0)[..., None]
