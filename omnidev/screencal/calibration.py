@@ -166,6 +166,28 @@ def _grid_summary(uv: FloatArray, border: BorderPolygon, screen_size: tuple[int,
     return f" in about {clusters(xy[:, 1])} rows x {clusters(xy[:, 0])} columns"
 
 
+def _grey_images(
+    white: NDArray[np.uint8],
+    black: NDArray[np.uint8],
+    third: NDArray[np.uint8],
+    name: str,
+    border: str,
+) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.uint8]]:
+    """The white, black and ``name`` (dots or coded) images in grey, of one size, for the
+    ``border`` method; CalibrationError otherwise."""
+    if border not in BORDERS:
+        raise CalibrationError(
+            f"unknown border method {border!r}; choose from {', '.join(BORDERS)}"
+        )
+    w, b, t = to_gray(white), to_gray(black), to_gray(third)
+    if not (w.shape == b.shape == t.shape):
+        raise CalibrationError(
+            f"image sizes differ: white {w.shape[::-1]}, black {b.shape[::-1]}, "
+            f"{name} {t.shape[::-1]}"
+        )
+    return w, b, t
+
+
 def detect_screen(
     white: NDArray[np.uint8],
     black: NDArray[np.uint8],
@@ -192,16 +214,7 @@ def detect_screen(
     fits beside the dots.
     Raises CalibrationError saying what was found.
     """
-    if border not in BORDERS:
-        raise CalibrationError(
-            f"unknown border method {border!r}; choose from {', '.join(BORDERS)}"
-        )
-    w, b, d = to_gray(white), to_gray(black), to_gray(dots)
-    if not (w.shape == b.shape == d.shape):
-        raise CalibrationError(
-            f"image sizes differ: white {w.shape[::-1]}, black {b.shape[::-1]}, "
-            f"dots {d.shape[::-1]}"
-        )
+    w, b, d = _grey_images(white, black, dots, "dots", border)
     grid = dot_grid(screen_size[0], screen_size[1], n) if layout is None else layout
     screen_size = grid.screen_px
     rows, cols = grid.shape
@@ -270,16 +283,7 @@ def detect_screen_coded(
     is identified, so there is no grid to index."""
     from omnidev.screencal.coded import find_charuco
 
-    if border not in BORDERS:
-        raise CalibrationError(
-            f"unknown border method {border!r}; choose from {', '.join(BORDERS)}"
-        )
-    w, b, c = to_gray(white), to_gray(black), to_gray(coded)
-    if not (w.shape == b.shape == c.shape):
-        raise CalibrationError(
-            f"image sizes differ: white {w.shape[::-1]}, black {b.shape[::-1]}, "
-            f"coded {c.shape[::-1]}"
-        )
+    w, b, c = _grey_images(white, black, coded, "coded", border)
     poly, tdm = _border_tdm(w, b, None, border)
     det = find_charuco(c, layout)
     grid = layout.lattice
