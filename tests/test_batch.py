@@ -15,6 +15,7 @@ identical, not merely close.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -329,6 +330,46 @@ def test_bad_command_is_one_line(batch, capsys, tmp_path):
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "--camera" in err
     shutil.rmtree(tmp_path, ignore_errors=True)
     os.makedirs(tmp_path, exist_ok=True)
+
+
+def test_local_cluster_is_frame_exact_and_shut_down(batch):
+    """Without --scheduler the command starts its own LocalCluster (2 worker processes)."""
+    import psutil
+
+    out = batch["tmp"] / "out-local"
+    src = batch["src"]
+    clips = _argv(batch, out, "--workers", "2", "--format", "avi", videos=True)
+    argv = [*clips[:5], str(src / "img0.png"), str(src / "img1.png"), *clips[5:]]  # + images
+    cmd = [sys.executable, "-m", "omnidev.cli.main", *argv]
+    job = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    me = psutil.Process(job.pid)
+    seen: set[int] = set()
+    try:
+        while job.poll() is None:  # every process the command starts, while it runs
+            with contextlib.suppress(psutil.Error):
+                seen |= {c.pid for c in me.children(recursive=True)}
+            time.sleep(0.05)
+        stdout, err = job.communicate(timeout=60)
+    finally:
+        if job.poll() is None:
+            job.kill()
+    assert job.returncode == 0, err
+    report = _report(stdout)
+    assert report["workers"] == 2 and report["threads"] == 2
+    assert {u["status"] for u in report["inputs"]} == {"ok"} and len(report["inputs"]) == 5
+    assert len(seen) >= 2  # the two workers (and their nanny's helpers) were seen
+    # the cluster is shut down with the command: none of its processes outlives it
+    _wait_for(lambda: not any(_alive(pid) for pid in seen), timeout_s=10.0)
+    assert _assert_identical(batch, out, ".avi", "") == 3 * FRAMES * len(VIEWS) + 2 * len(VIEWS)
+
+
+def _alive(pid: int) -> bool:
+    import psutil
+
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
 
 
 def test_killed_worker_job_completes_identically(batch, cluster):

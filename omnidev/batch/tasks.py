@@ -222,7 +222,7 @@ def range_task(job: RangeJob, maps: Sequence[Maps]) -> RangeResult | Failure:
                 out = FileOutput(Path(seg), spec, dict(job.encode))
                 stack.enter_context(out)
                 outputs.append(cast(Output, out))
-            stats = run_pipeline(frames, job.layout, remaps, outputs)
+            stats = run_pipeline(frames, job.layout, remaps, outputs, cpu_slots=job.threads)
         if stats.frames != job.frames.frames:
             return Failure(
                 f"video:{job.path}: frames {job.frames.start}..{job.frames.stop - 1}: wrote "
