@@ -29,6 +29,8 @@ start), ``ratio_w2_vs_w1`` (whole commands; target >= 1.7 on 2 idle cores),
 ``ratio_w2_vs_w1_job`` (the jobs' own wall times: without the cluster's start,
 which does not shrink with more workers), ``ratio_w1_vs_single`` and
 ``ratio_w2_vs_single`` (against the anchor), ``ratio_w1_vs_single_1t``,
+``job_cores_w1`` / ``job_cores_w2`` (the range tasks' pipeline CPU seconds
+over the job's wall time: the cores a job kept busy, at most 1 / 2),
 ``startup_s_w1`` / ``startup_s_w2`` (command wall minus job wall, medians:
 Python's start, the local cluster's start and stop). ``load_avg_1min`` holds
 the 1-minute load average at the start of every timed command, per case, and
@@ -202,6 +204,12 @@ def run(quick: bool = False) -> dict[str, Any]:
         for k in ("w1", "w2"):
             starts = [w - r["wall_s"] for w, r in zip(walls[k], jobs[k], strict=True)]
             result[f"startup_s_{k}"] = round(statistics.median(starts), 2)
+            cpu = [
+                sum(r["costs"][f"{st}_cpu_s"] for st in ("read", "remap", "write")) for r in jobs[k]
+            ]
+            result[f"job_cores_{k}"] = round(
+                statistics.median(c / r["wall_s"] for c, r in zip(cpu, jobs[k], strict=True)), 2
+            )
         result["wall_s"] = {k: [round(x, 2) for x in v] for k, v in walls.items()}
         result["load_avg_1min"] = load
         c = jobs["w2"][-1]["costs"]
