@@ -5,25 +5,36 @@ clips (4, or 2 with --quick) of ``frames`` frames each (240, or 96 with
 --quick), 960x960 4:2:0, GOP 48 with 2 B-frames (as a surveillance or dash
 camera records), each omnidev.sim's room through an ideal 190-degree
 equidistant fisheye looking up, turned 0.4 degrees further each frame, with
-sensor noise. Output: ``panorama:1024x256`` as H.264 (omnidev's .mp4 default:
-libx264 veryfast crf 20).
+sensor noise (sigma 2, one of 17 noise fields per frame, in turn). Output:
+``panorama:1024x256`` as H.264 (omnidev's .mp4 default: libx264 veryfast
+crf 20).
 
 Cases, each the whole command a user runs, timed from process start to exit
 (so Python's start, the cluster's start and the maps count), interleaved over
-``reps`` repetitions (3, or 1 with --quick), medians:
+``reps`` repetitions ($OMNIDEV_BENCH_REPS, default 2, or 1 with --quick), medians:
 
 - ``single``: ``omnidev unwarp`` once per input, one after the other, as a shell
   loop would (the anchor: what a user has without ``omnidev batch``), with its
   default threads (the usable cores); ``single_1t``: the same with --threads 1.
 - ``batch_w1`` / ``batch_w2``: ``omnidev batch unwarp`` over all inputs on a
   local cluster of 1 / 2 worker processes (one thread each, ``--range-frames
-  48``: one task per 48 frames).
+  48``: one task per 48 frames). A task of one thread uses one core: its
+  decoder and encoder run on one thread, and its read, remap and write stages
+  take turns (omnidev.videopipe's ``cpu_slots``) instead of overlapping on
+  the other core.
 
 Figures: ``*_fps`` (frames / median wall), ``*_job_fps`` (frames / the job's
 own wall time from its --json report: without Python's and the cluster's
-start), ``ratio_w2_vs_w1`` (target >= 1.7 on 2 idle cores), ``ratio_w2_vs_single``,
-``ratio_w1_vs_single_1t``, ``startup_s`` (command wall minus job wall, median,
-2 workers). The cost model's inputs, from the 2-worker job's report
+start), ``ratio_w2_vs_w1`` (whole commands; target >= 1.7 on 2 idle cores),
+``ratio_w2_vs_w1_job`` (the jobs' own wall times: without the cluster's start,
+which does not shrink with more workers), ``ratio_w1_vs_single`` and
+``ratio_w2_vs_single`` (against the anchor), ``ratio_w1_vs_single_1t``,
+``job_cores_w1`` / ``job_cores_w2`` (the range tasks' pipeline CPU seconds
+over the job's wall time: the cores a job kept busy, at most 1 / 2),
+``startup_s_w1`` / ``startup_s_w2`` (command wall minus job wall, medians:
+Python's start, the local cluster's start and stop). ``load_avg_1min`` holds
+the 1-minute load average at the start of every timed command, per case, and
+``bench_s`` the bench's own wall time. The cost model's inputs, from the 2-worker job's report
 (docs/batch.md): per-frame CPU ms of decoding, remapping and encoding, per-range
 task overhead (``task_setup_ms``: opening, seeking, starting and closing the
 encoder, wall time outside the frame pipeline), per-task bytes read and
@@ -75,12 +86,13 @@ def _input(data: Path, videos: int, frames: int) -> tuple[list[Path], Path]:
     if not cam.exists():
         lens = IdealFisheye("equidistant", f, c, c)
         write_camera_file(cam, FisheyeCamera(lens, (SIZE, SIZE), MOUNTS["up"], 95.0))
-    paths = [data / f"clip{k}-{frames}.mp4" for k in range(videos)]
+    paths = [data / f"clip{k}-{frames}-n17.mp4" for k in range(videos)]
     todo = [p for p in paths if not p.exists()]
     if not todo:
         return paths, cam
     sim = EquidistantFisheyeCamera(f, (SIZE, SIZE), (c, c), math.radians(95))
     rng = np.random.default_rng(1)
+    noise = [2 * rng.standard_normal((SIZE, SIZE, 3), dtype=np.float32) for _ in range(17)]
     for k, path in enumerate(paths):
         if path.exists():
             continue
@@ -94,7 +106,7 @@ def _input(data: Path, videos: int, frames: int) -> tuple[list[Path], Path]:
             for i in range(frames):
                 turn = cv2.getRotationMatrix2D((c, c), 0.4 * i, 1.0)
                 turned = np.asarray(cv2.warpAffine(base, turn, (SIZE, SIZE)), np.float32)
-                noisy = turned + rng.normal(0, 2, turned.shape).astype(np.float32)
+                noisy = turned + noise[i % len(noise)]
                 frame = av.VideoFrame.from_ndarray(
                     np.clip(noisy, 0, 255).astype(np.uint8), format="bgr24"
                 )
@@ -134,7 +146,8 @@ def _noop_ms(workers: int, tasks: int = 400) -> float:
 
 def run(quick: bool = False) -> dict[str, Any]:
     videos, frames = (2, 96) if quick else (4, 240)
-    reps = int(os.environ.get("OMNIDEV_BENCH_REPS", 1 if quick else 3))
+    t_bench = time.perf_counter()
+    reps = int(os.environ.get("OMNIDEV_BENCH_REPS", 1 if quick else 2))
     omnidev_bin = str(Path(sys.executable).parent / "omnidev")
     cache = os.environ.get("OMNIDEV_BENCH_CACHE")
     result: dict[str, Any] = {
@@ -151,9 +164,11 @@ def run(quick: bool = False) -> dict[str, Any]:
         total = videos * frames
         walls: dict[str, list[float]] = {"single": [], "single_1t": [], "w1": [], "w2": []}
         jobs: dict[str, list[dict[str, Any]]] = {"w1": [], "w2": []}
+        load: dict[str, list[float]] = {k: [] for k in walls}
         for rep in range(reps):
             for case in ("single", "w1", "w2", "single_1t"):
                 out = work / f"out-{case}-{rep}"
+                load[case].append(round(os.getloadavg()[0], 2))
                 if case.startswith("single"):
                     out.mkdir()
                     t0 = time.perf_counter()
@@ -183,10 +198,20 @@ def run(quick: bool = False) -> dict[str, Any]:
             result[f"batch_{k}_job_fps"] = round(total / job_wall[k], 2)
         result["ratio_w2_vs_w1"] = round(med["w1"] / med["w2"], 3)
         result["ratio_w2_vs_w1_job"] = round(job_wall["w1"] / job_wall["w2"], 3)
+        result["ratio_w1_vs_single"] = round(med["single"] / med["w1"], 3)
         result["ratio_w2_vs_single"] = round(med["single"] / med["w2"], 3)
         result["ratio_w1_vs_single_1t"] = round(med["single_1t"] / med["w1"], 3)
-        result["startup_s"] = round(med["w2"] - job_wall["w2"], 2)
+        for k in ("w1", "w2"):
+            starts = [w - r["wall_s"] for w, r in zip(walls[k], jobs[k], strict=True)]
+            result[f"startup_s_{k}"] = round(statistics.median(starts), 2)
+            cpu = [
+                sum(r["costs"][f"{st}_cpu_s"] for st in ("read", "remap", "write")) for r in jobs[k]
+            ]
+            result[f"job_cores_{k}"] = round(
+                statistics.median(c / r["wall_s"] for c, r in zip(cpu, jobs[k], strict=True)), 2
+            )
         result["wall_s"] = {k: [round(x, 2) for x in v] for k, v in walls.items()}
+        result["load_avg_1min"] = load
         c = jobs["w2"][-1]["costs"]
         n, tasks = c["frames"], c["range_tasks"]
         model = {
@@ -220,6 +245,7 @@ def run(quick: bool = False) -> dict[str, Any]:
         "days_on_workers": {n: round(core_hours / n / 24, 1) for n in (2, 16, 64, 256)},
     }
     result["load_avg_1min_end"] = round(os.getloadavg()[0], 2)
+    result["bench_s"] = round(time.perf_counter() - t_bench, 1)
     return result
 
 

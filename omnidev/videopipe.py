@@ -15,13 +15,17 @@ they overlap on the cores the process is given:
 Stages hand frames on through bounded queues (``depth`` frames each), so a
 slow stage holds the others back instead of filling the memory; every queue is
 first-in first-out and every stage has one thread, so frames leave in the order
-they came, each exactly once. The first exception in any stage stops all of
+they came, each exactly once. With ``cpu_slots`` N, at most N stages work at
+once (a semaphore held while decoding a frame, remapping it, encoding it): a
+process given N cores (a batch worker of N threads) then uses N cores, not
+the two or three the overlapping stages would take. The first exception in any stage stops all of
 them and is raised by :func:`run` (the caller aborts the outputs); the GIL is
 released inside decoding, remapping and encoding, which is where the time goes.
 """
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
 import time
@@ -114,17 +118,26 @@ def run(
     check: Callable[[Frame], None] | None = None,
     on_written: Callable[[int], None] | None = None,
     depth: int = 4,
+    cpu_slots: int | None = None,
 ) -> PipelineStats:
     """Unwarp ``frames`` (images in ``layout``) into ``outputs``: output i gets ``remaps[i]``.
 
     ``check(frame)`` runs on each frame as it is read (raise to stop, e.g. on a
     wrong size); ``on_written(n)`` is called from the first output's thread
     after it has written n frames (a progress bar). Stops after ``limit``
-    frames. Returns the frame count and per-stage times; raises the first
-    error of any stage.
+    frames. ``cpu_slots``: at most this many stages work at once (None: all
+    three overlap). Returns the frame count and per-stage times; raises the
+    first error of any stage.
     """
     if len(remaps) != len(outputs):
         raise ValueError("one remap per output")
+    if cpu_slots is not None and cpu_slots < 1:
+        raise ValueError("cpu_slots must be >= 1")
+    slots = threading.BoundedSemaphore(cpu_slots) if cpu_slots is not None else None
+
+    def working() -> contextlib.AbstractContextManager[Any]:
+        return slots if slots is not None else contextlib.nullcontext()
+
     p = _Pipeline(depth)
     stats = PipelineStats()
     q_read: queue.Queue[Any] = queue.Queue(depth)
@@ -152,9 +165,10 @@ def run(
         n = 0
         it = iter(frames)
         while limit is None or n < limit:
-            t0 = time.perf_counter()
-            frame = next(it, None)
-            st.busy_s += time.perf_counter() - t0
+            with working():
+                t0 = time.perf_counter()
+                frame = next(it, None)
+                st.busy_s += time.perf_counter() - t0
             if frame is None:
                 break
             if check is not None:
@@ -170,18 +184,19 @@ def run(
                 for q in q_out:
                     p.put(q, _END)
                 return
-            t0 = time.perf_counter()
-            views: dict[tuple[int, str], NDArray[np.uint8]] = {}
-            results = []
-            for i, (fn, out) in enumerate(zip(remaps, outputs, strict=True)):
-                key = (id(fn), out.layout)
-                if key not in views:
-                    image = fn(item.image)
-                    if out.layout != layout:
-                        image = to_layout(image, layout, out.layout)
-                    views[key] = image
-                results.append((i, views[key]))
-            st.busy_s += time.perf_counter() - t0
+            with working():
+                t0 = time.perf_counter()
+                views: dict[tuple[int, str], NDArray[np.uint8]] = {}
+                results = []
+                for i, (fn, out) in enumerate(zip(remaps, outputs, strict=True)):
+                    key = (id(fn), out.layout)
+                    if key not in views:
+                        image = fn(item.image)
+                        if out.layout != layout:
+                            image = to_layout(image, layout, out.layout)
+                        views[key] = image
+                    results.append((i, views[key]))
+                st.busy_s += time.perf_counter() - t0
             for i, image in results:
                 p.put(q_out[i], Frame(image, item.timestamp_ns, item.index))
 
@@ -192,9 +207,10 @@ def run(
                 item = p.get(q_out[i])
                 if item is _END:
                     return
-                t0 = time.perf_counter()
-                out.write(item)
-                st.busy_s += time.perf_counter() - t0
+                with working():
+                    t0 = time.perf_counter()
+                    out.write(item)
+                    st.busy_s += time.perf_counter() - t0
                 written[i] += 1
                 if i == 0 and on_written is not None:
                     on_written(written[0])

@@ -15,6 +15,7 @@ identical, not merely close.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -33,7 +34,7 @@ import numpy as np
 import pytest
 
 from omnidev.batch.avrange import index_video, plan_ranges
-from omnidev.batch.inputs import name_views
+from omnidev.batch.inputs import collect_inputs, name_views
 from omnidev.batch.journal import STATE_DIR
 from omnidev.cli.main import main
 from omnidev.fisheye.camera import MOUNTS, FisheyeCamera
@@ -329,6 +330,160 @@ def test_bad_command_is_one_line(batch, capsys, tmp_path):
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "--camera" in err
     shutil.rmtree(tmp_path, ignore_errors=True)
     os.makedirs(tmp_path, exist_ok=True)
+
+
+def test_local_cluster_is_frame_exact_and_shut_down(batch):
+    """Without --scheduler the command starts its own LocalCluster (2 worker processes)."""
+    import psutil
+
+    out = batch["tmp"] / "out-local"
+    src = batch["src"]
+    clips = _argv(batch, out, "--workers", "2", "--format", "avi", videos=True)
+    argv = [*clips[:5], str(src / "img0.png"), str(src / "img1.png"), *clips[5:]]  # + images
+    cmd = [sys.executable, "-m", "omnidev.cli.main", *argv]
+    job = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    me = psutil.Process(job.pid)
+    seen: set[int] = set()
+    try:
+        while job.poll() is None:  # every process the command starts, while it runs
+            with contextlib.suppress(psutil.Error):
+                seen |= {c.pid for c in me.children(recursive=True)}
+            time.sleep(0.05)
+        stdout, err = job.communicate(timeout=60)
+    finally:
+        if job.poll() is None:
+            job.kill()
+    assert job.returncode == 0, err
+    report = _report(stdout)
+    assert report["workers"] == 2 and report["threads"] == 2
+    assert {u["status"] for u in report["inputs"]} == {"ok"} and len(report["inputs"]) == 5
+    assert len(seen) >= 2  # the two workers (and their nanny's helpers) were seen
+    # the cluster is shut down with the command: none of its processes outlives it
+    _wait_for(lambda: not any(_alive(pid) for pid in seen), timeout_s=10.0)
+    assert _assert_identical(batch, out, ".avi", "") == 3 * FRAMES * len(VIEWS) + 2 * len(VIEWS)
+
+
+def _alive(pid: int) -> bool:
+    import psutil
+
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
+
+
+def test_manifests_parse_to_their_inputs(tmp_path):
+    """CSV and JSON lines: paths and globs relative to the manifest, a row's own camera and
+    views or the command's, view names, the row each input came from."""
+    for name in ("cam1.yml", "cam2.yml", "v1.mp4", "sub/v2.mp4", "sub/v3.mkv", "img.png"):
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        (tmp_path / name).write_bytes(b"x")
+    (tmp_path / "m.csv").write_text(
+        "Input , Camera,views\n"
+        'sub/*,cam2.yml,"front=perspective:64x48,fov=90;panorama:64x16"\n'
+        "\n"
+        "v1.mp4\n",
+        encoding="utf-8",
+    )
+    (tmp_path / "m.jsonl").write_text(
+        "# one input per line\n"
+        '{"input": "img.png", "camera": "cam2.yml", "views": "a=panorama:32x8;b=panorama:64x16"}\n'
+        "\n"
+        '{"input": "sub/v2.mp4", "views": ["plane:32x24,d=1,w=1,z=-1:0"]}\n',
+        encoding="utf-8",
+    )
+    good, bad = collect_inputs(
+        ["m.csv", "m.jsonl"], camera=Path("cam1.yml"), views=["panorama:128x32"], cwd=tmp_path
+    )
+    assert bad == []
+    got = [
+        (g.path.relative_to(tmp_path).as_posix(), g.camera.name,
+         [(v.name, v.spec) for v in g.views], g.origin, g.kind)
+        for g in good
+    ]  # fmt: skip
+    two = [("front", "perspective:64x48,fov=90"), ("panorama", "panorama:64x16")]
+    assert got == [
+        ("sub/v2.mp4", "cam2.yml", two, "m.csv row 1", "video"),
+        ("sub/v3.mkv", "cam2.yml", two, "m.csv row 1", "video"),
+        ("v1.mp4", "cam1.yml", [("panorama", "panorama:128x32")], "m.csv row 3", "video"),
+        ("img.png", "cam2.yml", [("a", "panorama:32x8"), ("b", "panorama:64x16")],
+         "m.jsonl line 2", "image"),
+        # sub/v2.mp4 again (line 4): named twice, it runs once, with its first views
+    ]  # fmt: skip
+
+
+def test_bad_manifest_rows_each_get_one_line(batch, cluster, capsys, tmp_path):
+    """Each bad row: one stderr line naming the manifest and row; the good rows finish."""
+    src, cam = batch["src"], batch["cam"]
+    (tmp_path / "m.csv").write_bytes(
+        b"input,camera,views\n"
+        + f"{src / 'a.mp4'},{cam},panorama:192x48\n".encode()  # row 1: good
+        + f",{cam},panorama:192x48\n".encode()  # 2: no input
+        + f"{src / 'a.mp4'},{cam},bogus:1x1\n".encode()  # 3: unknown view
+        + f"{src / 'missing.mp4'},{cam},panorama:192x48\n".encode()  # 4: no such file
+        + f"{src / 'a.mp4'},{cam},plane:32x24,w=1\n".encode()  # 5: unquoted comma
+        + b"\xff\xfe.mp4,x.yml,panorama:192x48\n"  # 6: not UTF-8
+        + f"{src / 'c.avi'},,\n".encode()  # 7: no camera (the command gives none)
+    )
+    (tmp_path / "m.jsonl").write_bytes(
+        json.dumps({"input": str(src / "c.avi"), "camera": str(cam), "views": ["panorama:192x48"]})
+        .encode() + b"\n"  # line 1: good
+        + b'{"input": "x.mp4",\n'  # 2: bad JSON
+        + b"[1, 2]\n"  # 3: not an object
+        + json.dumps({"input": str(src / "c.avi"), "camara": str(cam)}).encode() + b"\n"  # 4
+        + b'{"input": "\xe9.mp4"}\n'  # 5: not UTF-8 (Latin-1)
+    )  # fmt: skip
+    out = tmp_path / "out"
+    argv = ["batch", "unwarp", str(tmp_path / "m.csv"), str(tmp_path / "m.jsonl"),
+            "--out", str(out), "--scheduler", cluster.address, "--format", "avi",
+            "--no-progress", "--json"]  # fmt: skip
+    rc = main(argv)
+    cap = capsys.readouterr()
+    assert rc == 1 and "Traceback" not in cap.err, cap.err
+    report = _report(cap.out)
+    ok = sorted(Path(u["input"]).name for u in report["inputs"] if u["status"] == "ok")
+    assert ok == ["a.mp4", "c.avi"] and report["failed"] == 10
+    lines = [s for s in cap.err.splitlines() if s.strip()]
+    assert len(lines) == 10, lines
+    for where, why in (
+        ("m.csv row 2", "no input"),
+        ("m.csv row 3", "bogus"),
+        ("m.csv row 4", "file not found"),
+        ("m.csv row 5", "4 fields, the header has 3"),
+        ("m.csv row 6", "not UTF-8"),
+        ("m.csv row 7", "no camera"),
+        ("m.jsonl line 2", "not JSON"),
+        ("m.jsonl line 3", "not a JSON object"),
+        ("m.jsonl line 4", "unknown key 'camara'"),
+        ("m.jsonl line 5", "not UTF-8"),
+    ):
+        hits = [s for s in lines if where in s]
+        assert len(hits) == 1 and why in hits[0], (where, lines)
+    assert (out / "panorama" / "a.avi").is_file() and (out / "panorama" / "c.avi").is_file()
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "why"),
+    [
+        ("m.csv", None, "file not found"),
+        ("m.csv", b"", "no rows"),
+        ("m.csv", b"input,camera,views\n\n", "no rows"),
+        ("m.jsonl", b"# nothing yet\n\n", "no rows"),
+        ("m.csv", b"path,camera\na.mp4,c.yml\n", "must name an 'input' column"),
+        ("m.csv", b"input,camara\na.mp4,c.yml\n", "unknown column 'camara'"),
+        ("m.csv", b"input,views,views\na.mp4,,\n", "two 'views' columns"),
+        ("m.csv", b"input,\xff\n", "header is not UTF-8"),
+    ],
+)
+def test_unusable_manifest_is_one_line(tmp_path, capsys, name, content, why):
+    path = tmp_path / name
+    if content is not None:
+        path.write_bytes(content)
+    rc = main(["batch", "unwarp", str(path), "--out", str(tmp_path / "out"), "--workers", "1"])
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert rc == 2 and len(lines) == 1 and str(path) in err and why in err, err
+    assert not (tmp_path / "out").exists()  # stopped before any cluster or output
 
 
 def test_killed_worker_job_completes_identically(batch, cluster):

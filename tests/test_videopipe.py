@@ -86,3 +86,56 @@ def test_check_rejects_a_frame():
 
     with pytest.raises(SourceError, match="frame 3 is 5x4"):
         run(frames(10), "bgr", [plus(0)], [Collect("o")], check=check)
+
+
+class Active:
+    """Counts the stages working at once (each stage's work is a 1 ms sleep)."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.now = 0
+        self.most = 0
+
+    def work(self) -> None:
+        with self.lock:
+            self.now += 1
+            self.most = max(self.most, self.now)
+        time.sleep(0.001)
+        with self.lock:
+            self.now -= 1
+
+
+class Busy(Collect):
+    def __init__(self, name: str, active: Active) -> None:
+        super().__init__(name)
+        self.active = active
+
+    def write(self, frame: Frame) -> None:
+        self.active.work()
+        super().write(frame)
+
+
+def test_cpu_slots_bound_the_stages_working_at_once():
+    def source(active: Active, n: int):
+        for f in frames(n):
+            active.work()
+            yield f
+
+    def remap(active: Active):
+        def fn(img):
+            active.work()
+            return img
+
+        return fn
+
+    most = {}
+    for slots in (None, 1, 2):
+        active = Active()
+        outs = [Busy("a", active), Busy("b", active)]
+        stats = run(source(active, 60), "bgr", [remap(active)] * 2, outs, cpu_slots=slots)
+        assert stats.frames == 60 and [g[0] for g in outs[1].got] == list(range(60))
+        most[slots] = active.most
+    # unbounded, the read, remap and two write stages overlap; one slot: one at a time
+    assert most[None] >= 3 and most[1] == 1 and most[2] == 2
+    with pytest.raises(ValueError, match="cpu_slots"):
+        run(frames(1), "bgr", [plus(0)], [Collect("o")], cpu_slots=0)

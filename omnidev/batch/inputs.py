@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import glob
+import io
 import json
 import os
 import re
@@ -171,37 +172,98 @@ def _make(
     return BatchInput(f, camera, views, origin, input_kind(f))
 
 
+COLUMNS = ("input", "camera", "views")
+
+
+def _not_utf8(text: str) -> bool:
+    """True when ``text`` (decoded with surrogateescape) held bytes that are not UTF-8."""
+    return any("\udc80" <= ch <= "\udcff" for ch in text)
+
+
 def _rows(path: Path) -> list[tuple[int, dict[str, Any] | str]]:
-    """(row number, fields or an error) of a manifest; row 1 is the first data row."""
+    """(row number, fields or an error) of a manifest; row 1 is the first data row.
+
+    A CSV row numbers its data rows (the header is not one), JSON lines count
+    every line. Raises :class:`OmnidevError` naming the file for a manifest
+    that cannot be used at all (unreadable, no header naming ``input``, an
+    unknown column, no rows); a row that cannot be used is returned as its
+    error: not UTF-8, not JSON, not an object, unknown keys, more fields than
+    the header.
+    """
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except FileNotFoundError:
         raise OmnidevError(f"manifest {path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise OmnidevError(f"manifest {path}: cannot read it ({exc})") from None
-    rows: list[tuple[int, dict[str, Any] | str]] = []
-    if path.suffix.lower() == ".csv":
-        reader = csv.DictReader(text.splitlines())
-        fields = [f.strip().lower() for f in reader.fieldnames or []]
+    except OSError as exc:
+        raise OmnidevError(f"manifest {path}: cannot read it ({exc.strerror or exc})") from None
+    text = data.decode("utf-8", errors="surrogateescape").removeprefix("\ufeff")
+    rows = _csv_rows(path, text) if path.suffix.lower() == ".csv" else _json_rows(text)
+    if not rows:
+        raise OmnidevError(f"manifest {path}: no rows (an empty manifest)")
+    return rows
+
+
+def _csv_rows(path: Path, text: str) -> list[tuple[int, dict[str, Any] | str]]:
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        header = next((r for r in reader if any(f.strip() for f in r)), None)
+        if header is None:
+            raise OmnidevError(f"manifest {path}: no rows (an empty manifest)")
+        fields = [f.strip().lower() for f in header]
+        if _not_utf8(",".join(fields)):
+            raise OmnidevError(f"manifest {path}: its header is not UTF-8 text")
         if "input" not in fields:
             raise OmnidevError(
                 f"manifest {path}: the header must name an 'input' column (and optionally "
-                f"'camera', 'views'); found {', '.join(fields) or 'no header'}"
+                f"'camera', 'views'); found {', '.join(fields)}"
             )
+        unknown = [f for f in fields if f not in COLUMNS]
+        twice = sorted({f for f in fields if fields.count(f) > 1})
+        if unknown or twice:
+            what = f"unknown column {unknown[0]!r}" if unknown else f"two {twice[0]!r} columns"
+            raise OmnidevError(f"manifest {path}: {what} (columns: {', '.join(COLUMNS)})")
+        rows: list[tuple[int, dict[str, Any] | str]] = []
         for n, row in enumerate(reader, start=1):
-            clean = {(k or "").strip().lower(): (v or "").strip() for k, v in row.items()}
-            if any(clean.values()):
-                rows.append((n, clean))
-        return rows
+            if not any(f.strip() for f in row):
+                continue
+            if _not_utf8(",".join(row)):
+                rows.append((n, "not UTF-8 text"))
+            elif len(row) > len(fields):
+                rows.append(
+                    (n, f"{len(row)} fields, the header has {len(fields)} (quote a field that "
+                        'holds commas: "a;b,fov=90")')
+                )  # fmt: skip
+            else:
+                rows.append((n, {k: v.strip() for k, v in zip(fields, row, strict=False)}))
+    except csv.Error as exc:
+        raise OmnidevError(f"manifest {path} line {reader.line_num}: {exc}") from None
+    return rows
+
+
+def _json_rows(text: str) -> list[tuple[int, dict[str, Any] | str]]:
+    rows: list[tuple[int, dict[str, Any] | str]] = []
     for n, line in enumerate(text.splitlines(), start=1):
         if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        if _not_utf8(line):
+            rows.append((n, "not UTF-8 text"))
             continue
         try:
             obj = json.loads(line)
         except json.JSONDecodeError as exc:
-            rows.append((n, f"not JSON ({exc.msg})"))
+            rows.append((n, f"not JSON ({exc.msg} at column {exc.colno})"))
             continue
-        rows.append((n, obj if isinstance(obj, dict) else "not a JSON object"))
+        if not isinstance(obj, dict):
+            rows.append((n, "not a JSON object"))
+            continue
+        unknown = sorted(k for k in obj if k not in COLUMNS)
+        if unknown:
+            rows.append((n, f"unknown key {unknown[0]!r} (keys: {', '.join(COLUMNS)})"))
+            continue
+        if not all(isinstance(obj.get(k, ""), str) for k in ("input", "camera")):
+            rows.append((n, "input and camera must be strings"))
+            continue
+        rows.append((n, obj))
     return rows
 
 

@@ -61,8 +61,9 @@ class Settings:
 
     ``range_frames`` is the target length of a video range (frames; ranges
     start at keyframes, so they are this long or longer), ``images_per_task``
-    the images of one task, ``task_threads`` the CPU threads each task uses
-    (decoding, remapping, encoding: one per Dask worker thread).
+    the images of one task, ``task_threads`` the cores each task keeps busy
+    (its codecs' and OpenCV's threads, and its pipeline stages working at once;
+    one per Dask worker thread).
     """
 
     interpolation: str = "linear"

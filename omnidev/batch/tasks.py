@@ -69,7 +69,9 @@ class RangeJob:
         segments: one output file per view (absolute; the final file's suffix).
         encode: file output options (``crf``, ``preset``, ``codec``, ``q``).
         map_keys: one key per view naming its maps (the remapper cache's key).
-        threads: CPU threads for decoding, remapping and encoding.
+        threads: the cores the task keeps busy: threads of the decoder, the
+            encoders and OpenCV's remap, and how many of the pipeline's read,
+            remap and write stages work at once (videopipe's ``cpu_slots``).
     """
 
     path: str
@@ -222,7 +224,7 @@ def range_task(job: RangeJob, maps: Sequence[Maps]) -> RangeResult | Failure:
                 out = FileOutput(Path(seg), spec, dict(job.encode))
                 stack.enter_context(out)
                 outputs.append(cast(Output, out))
-            stats = run_pipeline(frames, job.layout, remaps, outputs)
+            stats = run_pipeline(frames, job.layout, remaps, outputs, cpu_slots=job.threads)
         if stats.frames != job.frames.frames:
             return Failure(
                 f"video:{job.path}: frames {job.frames.start}..{job.frames.stop - 1}: wrote "

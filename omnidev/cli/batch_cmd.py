@@ -100,8 +100,8 @@ def register(sub: Any) -> None:
     u.add_argument("--images-per-task", type=int, default=16, help="images per image task")
     u.add_argument(
         "--task-threads", type=int, default=1,
-        help="CPU threads per task for decoding, remapping, encoding (default 1: one task per "
-        "core)",
+        help="cores per task: threads for decoding, remapping, encoding, and its stages at work "
+        "at once (default 1: one task per core)",
     )  # fmt: skip
     u.add_argument("--force", action="store_true", help="overwrite outputs of other jobs")
     u.add_argument(
