@@ -142,8 +142,8 @@ def test_stream_of_a_file_matches_offline_unwarp(clip, source_frames, tmp_path):
     # the 4:2:0 route, which agrees with BGR only to ~36 dB: test_cli_unwarp_video.py)
     offline = tmp_path / "offline.y4m"
     code = cli_main(
-        ["unwarp", f"video:{video}?loop=0", "--camera", str(cam), "--view", "perspective:160x120,fov=90,tilt=45",
-         "-o", f"y4m:{offline}"]
+        ["unwarp", f"video:{video}?loop=0", "--camera", str(cam),
+         "--view", "perspective:160x120,fov=90,tilt=45", "-o", f"y4m:{offline}"]
     )  # fmt: skip
     assert code == 0
     got, want = read_y4m(tmp_path / "flat.y4m"), read_y4m(offline)

@@ -50,8 +50,8 @@ from typing import Any, cast
 
 import numpy as np
 
-from omnidev.camera import CameraModel, Remapper, build_maps
 from omnidev import registry
+from omnidev.camera import CameraModel, Remapper, build_maps
 from omnidev.errors import ConfigError, FileSourceError, OmnidevError, PluginError
 from omnidev.frame import Frame
 from omnidev.outputs import GROUP as OUTPUTS
