@@ -9,6 +9,14 @@ advances the current pose towards the target by at most ``max_deg_s * dt`` degre
 at once; pan goes the short way round). Pure arithmetic, thread-safe: one thread
 may set targets while another steps.
 
+:func:`coarse_maps` builds a perspective view's maps from the camera at every
+``step``-th pixel in each direction and interpolates the rest (bilinear in the
+source-pixel coordinates, which are smooth across a pinhole view): ``step`` squared
+times fewer rays through the camera model, for the poses a view passes through
+while it moves (the daemon builds exact maps when the move ends). Pixels next to
+the edge of what the camera sees are left invalid rather than interpolated across
+it; bench/ptz.py reports the largest difference from the exact maps.
+
 :func:`parse_moves` reads the ``pan=... tilt=... fov=...`` words of ``omnidev ctl
 view``: a plain number is absolute (``pan=30``), a signed one relative (``pan=+10``,
 ``fov=-10``), and ``pan==-30`` is the absolute -30.
@@ -20,7 +28,12 @@ import math
 import threading
 from dataclasses import dataclass
 
+import cv2
+import numpy as np
+
+from omnidev.camera import INVALID, CameraModel, Maps, build_maps
 from omnidev.errors import OmnidevError
+from omnidev.views import Perspective
 
 MIN_FOV_DEG = 1.0
 MAX_FOV_DEG = 179.0
@@ -160,3 +173,47 @@ def parse_moves(words: list[str] | dict[str, str]) -> tuple[dict[str, float], di
     if not absolute and not relative:
         raise OmnidevError("give at least one of pan=, tilt=, fov=")
     return absolute, relative
+
+
+def coarse_maps(camera: CameraModel, view: Perspective, step: int = 4) -> Maps:
+    """``view``'s maps from rays at every ``step``-th pixel, bilinear in between (see above).
+
+    ``step`` 1 is :func:`~omnidev.camera.build_maps` itself. The coarse grid has the
+    same optical centre and a focal length ``step`` times shorter, so its pixel ``j``
+    looks where the full view's pixel ``(j + 0.5) * step - 0.5`` (relative to the
+    centre) does; a pixel whose four coarse neighbours are not all valid is invalid.
+    """
+    if step < 1:
+        raise ValueError(f"step must be >= 1, got {step}")
+    if step == 1:
+        return build_maps(camera, view)
+    w, h = view.width, view.height
+    # one coarse pixel of margin on each side, so that the edges are interpolated, not
+    # held; the grid covers (w + 2 step) x (h + 2 step) pixels of the full view's plane
+    cw, ch = -(-w // step) + 2, -(-h // step) + 2
+    fc = view.focal_px / step
+    fov = math.degrees(2 * math.atan(cw / 2 / fc))
+    if not fov < 180:
+        return build_maps(camera, view)
+    coarse = build_maps(
+        camera, Perspective(cw, ch, fov, view.pan_deg, view.tilt_deg, view.roll_deg)
+    )
+    # cv2.resize maps full pixel x to coarse (x + 0.5) / step - 0.5: the centres line
+    # up when the full grid is cw * step wide; the view is its middle w x h (whole
+    # pixels off-centre by (cw * step - w) / 2, an integer when w is even or step odd)
+    big_w, big_h = cw * step, ch * step
+    x0, y0 = (big_w - w) / 2, (big_h - h) / 2
+    if x0 != int(x0) or y0 != int(y0):
+        return build_maps(camera, view)
+    xs, ys = slice(int(x0), int(x0) + w), slice(int(y0), int(y0) + h)
+
+    def up(a: np.ndarray) -> np.ndarray:
+        big = cv2.resize(a, (big_w, big_h), interpolation=cv2.INTER_LINEAR)
+        return np.ascontiguousarray(big[ys, xs], np.float32)
+
+    ok = up(coarse.valid.astype(np.float32)) >= 1.0 - 1e-6
+    map_x = up(coarse.map_x)
+    map_y = up(coarse.map_y)
+    map_x[~ok] = INVALID
+    map_y[~ok] = INVALID
+    return Maps(map_x, map_y, ok, coarse.source_size)

@@ -58,3 +58,28 @@ def test_parse_moves():
     ):
         with pytest.raises(OmnidevError, match=msg):
             parse_moves(bad)
+
+
+def test_coarse_maps_are_within_a_hundredth_of_a_pixel_of_exact_ones(tmp_path):
+    """Rays at every 4th pixel, bilinear in between: a 190-degree fisheye, a 640x480 view."""
+    import numpy as np
+
+    import omnidev
+    from omnidev.camera import build_maps
+    from omnidev.ptz import coarse_maps
+    from omnidev.views import Perspective
+    from tests.test_cli_unwarp_video import fisheye_clip
+
+    _, cam = fisheye_clip(tmp_path, frames=1)
+    camera = omnidev.load_camera(cam)
+    for view in (Perspective(640, 480, 70.0, 30.0, 40.0), Perspective(640, 480, 100.0, 0.0, 0.0)):
+        exact, coarse = build_maps(camera, view), coarse_maps(camera, view, 4)
+        both = exact.valid & coarse.valid
+        assert both.sum() > 0.3 * both.size
+        err = np.hypot(exact.map_x - coarse.map_x, exact.map_y - coarse.map_y)[both]
+        assert err.max() < 0.01, err.max()
+        lost = (exact.valid & ~coarse.valid).sum()  # only along the edge of the camera's view
+        assert lost < 4 * 4 * (640 + 480), lost
+        assert not (coarse.valid & ~exact.valid).any()
+    one = coarse_maps(camera, Perspective(64, 48, 60.0), 1)
+    assert np.array_equal(one.map_x, build_maps(camera, Perspective(64, 48, 60.0)).map_x)

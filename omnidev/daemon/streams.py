@@ -33,7 +33,12 @@ Each running stream (:class:`Stream`) has three threads:
   :class:`~omnidev.ptz.ViewController` moves, off the remap thread, and swaps the
   finished :class:`~omnidev.camera.Remapper` in with one assignment. The remap
   thread reads a view's remapper once per frame, so a frame is made with either
-  the old or the new maps, never a mix.
+  the old or the new maps, never a mix. The steer thread steps the controller once
+  per frame time (or per rebuild, when a rebuild takes longer); poses passed
+  through are built coarsely (:func:`~omnidev.ptz.coarse_maps`, every
+  :data:`MOVING_MAP_STEP`-th pixel) when the view found that faster at its start
+  (a camera without a fast map path: the non-SVP mirror), the pose a move ends at
+  always exactly.
 """
 
 from __future__ import annotations
@@ -57,7 +62,7 @@ from omnidev.frame import Frame
 from omnidev.outputs import GROUP as OUTPUTS
 from omnidev.outputs import MAX_FPS, Output, OutputSpec, open_output, split_output_uri
 from omnidev.outputs.pixels import to_layout
-from omnidev.ptz import Pose, ViewController
+from omnidev.ptz import Pose, ViewController, coarse_maps
 from omnidev.sources import open_source, resolve_uri
 from omnidev.views import Perspective, View
 from omnidev.viewspec import parse_view
@@ -71,6 +76,8 @@ STREAM_KEYS = {
 VIEW_KEYS = {"name", "view", "output", "max_deg_s"}
 MAX_STREAM_QUEUE = 16
 DEFAULT_FPS = 30.0
+MOVING_MAP_STEP = 4
+"""Poses a view passes through are built from rays at every this many pixels."""
 
 
 @dataclass(frozen=True)
@@ -252,28 +259,45 @@ class LiveView:
         self.config = config
         self.camera = camera
         self.interpolation = interpolation
+        t0 = time.perf_counter()
         self.remapper = Remapper(build_maps(camera, config.view), interpolation=interpolation)  # type: ignore[arg-type]
+        exact_s = time.perf_counter() - t0
+        self.moving_coarse = False  # poses passed through: coarse maps when they are faster
         self.controller: ViewController | None = None
         self.built: Pose | None = None
         self.rebuild_ms: deque[float] = deque(maxlen=200)
+        self.built_exact = True
         self.rebuilds = 0
         if isinstance(config.view, Perspective):
             v = config.view
             self.built = Pose(v.pan_deg, v.tilt_deg, v.fov_deg)
             self.controller = ViewController(self.built, config.max_deg_s)
             self.built = self.controller.pose
+            t0 = time.perf_counter()
+            Remapper(coarse_maps(camera, config.view, MOVING_MAP_STEP))
+            self.moving_coarse = time.perf_counter() - t0 < 0.8 * exact_s
         self.outputs: list[Output] = []
         self.written = 0
         self.history: deque[tuple[int, Pose | None]] = deque(maxlen=4096)
 
-    def rebuild(self, pose: Pose) -> None:
-        """Build maps for ``pose`` and swap them in (one assignment: atomic for readers)."""
+    def rebuild(self, pose: Pose, exact: bool = True) -> None:
+        """Build maps for ``pose`` and swap them in (one assignment: atomic for readers).
+
+        ``exact`` False (a pose passed through while moving): :func:`~omnidev.ptz.coarse_maps`
+        at every :data:`MOVING_MAP_STEP`-th pixel if the view measured that faster than
+        exact maps when it started (it is for a camera without a fast map path)."""
         assert isinstance(self.config.view, Perspective)
         t0 = time.perf_counter()
-        maps = build_maps(self.camera, perspective_at(self.config.view, pose))
+        view = perspective_at(self.config.view, pose)
+        maps = (
+            build_maps(self.camera, view)
+            if exact or not self.moving_coarse
+            else coarse_maps(self.camera, view, MOVING_MAP_STEP)
+        )
         remapper = Remapper(maps, interpolation=self.interpolation)  # type: ignore[arg-type]
         self.rebuild_ms.append((time.perf_counter() - t0) * 1000)
         self.remapper, self.built = remapper, pose  # the frame thread reads remapper once
+        self.built_exact = exact
         self.rebuilds += 1
 
     def status(self) -> dict[str, Any]:
@@ -290,6 +314,7 @@ class LiveView:
             out["target"] = {"pan": t.pan, "tilt": t.tilt, "fov": t.fov}
             out["max_deg_s"] = self.controller.max_deg_s
             out["rebuilds"] = self.rebuilds
+            out["moving_maps"] = "coarse" if self.moving_coarse else "exact"
             ms = list(self.rebuild_ms)
             out["rebuild_ms_p50"] = round(float(np.percentile(ms, 50)), 3) if ms else None
             out["rebuild_ms_max"] = round(max(ms), 3) if ms else None
@@ -611,7 +636,7 @@ class Stream:
                 assert v.controller is not None
                 pose = v.controller.step(dt)
                 try:
-                    v.rebuild(pose)
+                    v.rebuild(pose, exact=v.controller.settled)
                 except Exception as exc:  # a pose the camera cannot show: stay where it is
                     log.error("stream %s: view %s: %s", self.config.name, v.config.name, exc)
                     v.controller.set_target(v.built.pan, v.built.tilt, v.built.fov)  # type: ignore[union-attr]
