@@ -321,3 +321,18 @@ def test_ctl_view_refuses_unknown_views_and_bad_moves(clip, tmp_path, capsys):
         assert cli_main(["ctl", "status", "--socket", sock]) == 0
         text = capsys.readouterr().out
         assert "stream s:" in text and "(capture -> output)" in text and "view ptz:" in text
+
+
+def test_an_output_that_cannot_open_stops_the_daemon_for_a_restart(clip, tmp_path):
+    video, cam = clip
+    config = write_config(
+        tmp_path,
+        stream_toml(
+            str(video), cam, [("v", "perspective:64x48", "v4l2:/dev/video-absent-h44", "")]
+        ),
+    )
+    with Running(config) as run:
+        run.thread.join(20)
+    assert run.status_code == 1  # systemd restarts it: the device may come back
+    st = run.daemon.streams[0].status()
+    assert st["state"] == "failed" and "/dev/video-absent-h44" in st["error"]

@@ -235,6 +235,8 @@ class Daemon:
                 return True, EXIT_SOURCE_FAILED, s.error or "stream failed"
             if not s.alive:
                 return True, 1, f"stream {s.config.name}: a thread died"
+            if s.output_failed:
+                return True, 1, s.error or f"stream {s.config.name} failed"
             parts_done.append(s.finished.is_set())
         if parts_done and all(parts_done):
             failed = [s for s in self.streams if s.source_failed]

@@ -350,6 +350,7 @@ class Stream:
         self.source_fps: float | None = None
         self.error: str | None = None
         self.source_failed = False
+        self.output_failed = False  # an output could not be opened or the remap failed
         self.ended = threading.Event()
         self.finished = threading.Event()
         self.heartbeat = time.monotonic()
@@ -360,6 +361,7 @@ class Stream:
         self._paused = threading.Event()
         self._steer = threading.Event()
         self._output_failing = False
+        self._capture_done = False  # the capture thread ended with its file
         self._threads = [
             threading.Thread(target=self._capture_loop, name=f"capture:{config.name}", daemon=True),
             threading.Thread(target=self._remap_loop, name=f"remap:{config.name}", daemon=True),
@@ -392,12 +394,16 @@ class Stream:
 
     @property
     def alive(self) -> bool:
-        return all(t.is_alive() for t in self._threads) or self.finished.is_set()
+        """Every thread runs (the capture thread may have ended with its file), or the
+        stream has finished."""
+        if self.finished.is_set():
+            return True
+        capture, *others = self._threads
+        return (capture.is_alive() or self._capture_done) and all(t.is_alive() for t in others)
 
     def healthy(self, max_silence_s: float = 5.0) -> bool:
         return self.finished.is_set() or (
-            all(t.is_alive() for t in self._threads)
-            and time.monotonic() - self.heartbeat < max_silence_s
+            self.alive and time.monotonic() - self.heartbeat < max_silence_s
         )
 
     def view(self, name: str) -> LiveView | None:
@@ -495,10 +501,12 @@ class Stream:
                             return
                     if not live:
                         self._put_end()
+                        self._capture_done = True
                         return
             except Exception as exc:
                 if isinstance(exc, FileSourceError) or not live:
                     self._put_end()
+                    self._capture_done = True
                     self._fail(str(exc) if isinstance(exc, OmnidevError) else f"{uri}: {exc!r}")
                     return
                 if not isinstance(exc, OmnidevError):
@@ -589,6 +597,7 @@ class Stream:
             self.error = f"stream {self.config.name}: {exc}"
             log.error("%s", self.error)
             self.state = "failed"
+            self.output_failed = True
             self._stop.set()
             self.finished.set()
             for v in self.views:
