@@ -15,11 +15,12 @@ repetitions of the same run:
   conversion of :class:`~omnidev.camera.Remapper`); ``rebuild_p95_ms``.
 - ``moving_rebuild_ms`` (``_p95_ms``), ``ratio_moving_rebuild_vs_frame_30fps``: the
   same for a pose passed through during a move (:func:`omnidev.ptz.coarse_maps`,
-  rays at every 4th pixel), and how far those maps are from the exact ones:
+  rays at every ``moving_map_step_timed``-th pixel: the view's choice, at least 4),
+  and how far those maps are from the exact ones:
   ``moving_map_err_px_p99``/``_max`` (source pixels, over pixels valid in both) and
   ``moving_valid_lost_share`` (valid pixels next to the camera's edge left black);
-  ``moving_maps_chosen``: what a running view uses while moving (coarse when it
-  measured them faster than exact ones at its start).
+  ``moving_map_step_chosen``: what a running view uses while moving (1: exact maps;
+  4 or 8: coarse ones, when it measured them faster at its start).
 - ``remap_ms``: the frame thread's remap of one 1920x1920 BGR frame with those maps
   (the anchor measured in the same run: the work a rebuild competes with).
 - ``ratio_rebuild_vs_remap``; ``ratio_rebuild_vs_frame_30fps``: rebuild over 33.3 ms
@@ -44,7 +45,7 @@ import numpy as np
 
 import omnidev
 from omnidev.camera import Remapper, build_maps
-from omnidev.daemon.streams import MOVING_MAP_STEP, LiveView, ViewConfig, perspective_at
+from omnidev.daemon.streams import LiveView, ViewConfig, perspective_at
 from omnidev.ptz import Pose, coarse_maps
 from omnidev.viewspec import parse_view
 
@@ -65,11 +66,11 @@ def _kind(camera: Any, tilt: float, reps: int) -> dict[str, float]:
     view = parse_view(VIEW)
     live = LiveView(ViewConfig("bench", VIEW, view, ("raw:-",), 90.0), camera, "linear")
     frame = np.random.default_rng(0).integers(0, 256, (*camera.image_size[::-1], 3), np.uint8)
-    chosen = live.moving_coarse
+    chosen = live.moving_step
     rebuild, moving, remap = [], [], []
     for i in range(reps):
         t0 = time.perf_counter()
-        live.moving_coarse = True  # time the coarse maps whatever the view chose
+        live.moving_step = max(chosen, 4)  # time coarse maps even where exact ones won
         live.rebuild(Pose(3.0 * i + 1.5, tilt, 70.0), exact=False)
         moving.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
@@ -86,11 +87,12 @@ def _kind(camera: Any, tilt: float, reps: int) -> dict[str, float]:
     rm = float(np.median(remap)) * 1000
     pose_view = perspective_at(view, Pose(10.0, tilt, 70.0))
     exact = build_maps(camera, pose_view)
-    coarse = coarse_maps(camera, pose_view, MOVING_MAP_STEP)
+    coarse = coarse_maps(camera, pose_view, live.moving_step)
     both = exact.valid & coarse.valid
     err = np.hypot(exact.map_x - coarse.map_x, exact.map_y - coarse.map_y)[both]
     return {
-        "moving_maps_chosen": "coarse" if chosen else "exact",
+        "moving_map_step_chosen": chosen,
+        "moving_map_step_timed": live.moving_step,
         "moving_rebuild_ms": round(mv, 3),
         "moving_rebuild_p95_ms": round(float(np.percentile(moving, 95)) * 1000, 3),
         "ratio_moving_rebuild_vs_frame_30fps": round(mv / FRAME_30FPS_MS, 3),

@@ -35,10 +35,11 @@ Each running stream (:class:`Stream`) has three threads:
   thread reads a view's remapper once per frame, so a frame is made with either
   the old or the new maps, never a mix. The steer thread steps the controller once
   per frame time (or per rebuild, when a rebuild takes longer); poses passed
-  through are built coarsely (:func:`~omnidev.ptz.coarse_maps`, every
-  :data:`MOVING_MAP_STEP`-th pixel) when the view found that faster at its start
-  (a camera without a fast map path: the non-SVP mirror), the pose a move ends at
-  always exactly.
+  through are built coarsely (:func:`~omnidev.ptz.coarse_maps`, rays at every
+  4th or 8th pixel) when the view found that faster at its start (exact maps
+  that take more than half a frame: the non-SVP mirror has no fast map path); the
+  pose a move ends at is shown coarse first, then exact. A jump (``max_deg_s`` 0)
+  is always built exactly.
 """
 
 from __future__ import annotations
@@ -76,8 +77,10 @@ STREAM_KEYS = {
 VIEW_KEYS = {"name", "view", "output", "max_deg_s"}
 MAX_STREAM_QUEUE = 16
 DEFAULT_FPS = 30.0
-MOVING_MAP_STEP = 4
-"""Poses a view passes through are built from rays at every this many pixels."""
+MOVING_MAP_STEPS = (4, 8)
+"""Poses a view passes through may be built from rays at every 4th (or, when that
+still takes longer than a 30 fps frame, every 8th) pixel."""
+FRAME_BUDGET_S = 1 / 30
 
 
 @dataclass(frozen=True)
@@ -262,7 +265,7 @@ class LiveView:
         t0 = time.perf_counter()
         self.remapper = Remapper(build_maps(camera, config.view), interpolation=interpolation)  # type: ignore[arg-type]
         exact_s = time.perf_counter() - t0
-        self.moving_coarse = False  # poses passed through: coarse maps when they are faster
+        self.moving_step = 1  # poses passed through: coarse maps (step > 1) when faster
         self.controller: ViewController | None = None
         self.built: Pose | None = None
         self.rebuild_ms: deque[float] = deque(maxlen=200)
@@ -273,9 +276,15 @@ class LiveView:
             self.built = Pose(v.pan_deg, v.tilt_deg, v.fov_deg)
             self.controller = ViewController(self.built, config.max_deg_s)
             self.built = self.controller.pose
-            t0 = time.perf_counter()
-            Remapper(coarse_maps(camera, config.view, MOVING_MAP_STEP))
-            self.moving_coarse = time.perf_counter() - t0 < 0.8 * exact_s
+            best = exact_s
+            for step in MOVING_MAP_STEPS:
+                if best <= FRAME_BUDGET_S / 2:
+                    break
+                t0 = time.perf_counter()
+                Remapper(coarse_maps(camera, config.view, step))
+                took = time.perf_counter() - t0
+                if took < 0.8 * best:
+                    self.moving_step, best = step, took
         self.outputs: list[Output] = []
         self.written = 0
         self.history: deque[tuple[int, Pose | None]] = deque(maxlen=4096)
@@ -284,15 +293,16 @@ class LiveView:
         """Build maps for ``pose`` and swap them in (one assignment: atomic for readers).
 
         ``exact`` False (a pose passed through while moving): :func:`~omnidev.ptz.coarse_maps`
-        at every :data:`MOVING_MAP_STEP`-th pixel if the view measured that faster than
-        exact maps when it started (it is for a camera without a fast map path)."""
+        at every ``moving_step``-th pixel, which the view chose when it started: the
+        fastest of exact maps and :data:`MOVING_MAP_STEPS` (tried while the best so far
+        takes more than half a 30 fps frame)."""
         assert isinstance(self.config.view, Perspective)
         t0 = time.perf_counter()
         view = perspective_at(self.config.view, pose)
         maps = (
             build_maps(self.camera, view)
-            if exact or not self.moving_coarse
-            else coarse_maps(self.camera, view, MOVING_MAP_STEP)
+            if exact or self.moving_step == 1
+            else coarse_maps(self.camera, view, self.moving_step)
         )
         remapper = Remapper(maps, interpolation=self.interpolation)  # type: ignore[arg-type]
         self.rebuild_ms.append((time.perf_counter() - t0) * 1000)
@@ -314,7 +324,7 @@ class LiveView:
             out["target"] = {"pan": t.pan, "tilt": t.tilt, "fov": t.fov}
             out["max_deg_s"] = self.controller.max_deg_s
             out["rebuilds"] = self.rebuilds
-            out["moving_maps"] = "coarse" if self.moving_coarse else "exact"
+            out["moving_map_step"] = self.moving_step
             ms = list(self.rebuild_ms)
             out["rebuild_ms_p50"] = round(float(np.percentile(ms, 50)), 3) if ms else None
             out["rebuild_ms_max"] = round(max(ms), 3) if ms else None
@@ -645,7 +655,12 @@ class Stream:
                 assert v.controller is not None
                 pose = v.controller.step(dt)
                 try:
-                    v.rebuild(pose, exact=v.controller.settled)
+                    settled = v.controller.settled
+                    jump = v.controller.max_deg_s == 0
+                    if not settled or (v.moving_step > 1 and not jump):
+                        v.rebuild(pose, exact=False)  # the last pose at once, refined below
+                    if settled:
+                        v.rebuild(pose, exact=True)
                 except Exception as exc:  # a pose the camera cannot show: stay where it is
                     log.error("stream %s: view %s: %s", self.config.name, v.config.name, exc)
                     v.controller.set_target(v.built.pan, v.built.tilt, v.built.fov)  # type: ignore[union-attr]
