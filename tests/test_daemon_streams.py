@@ -321,6 +321,7 @@ def test_ctl_view_refuses_unknown_views_and_bad_moves(clip, tmp_path, capsys):
         assert cli_main(["ctl", "status", "--socket", sock]) == 0
         text = capsys.readouterr().out
         assert "stream s:" in text and "(capture -> output)" in text and "view ptz:" in text
+        assert "pointer:         none (streams only)" in text
 
 
 def test_an_output_that_cannot_open_stops_the_daemon_for_a_restart(clip, tmp_path):

@@ -70,7 +70,10 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(reply, sort_keys=True))
     elif args.action == "status":
-        print(format_status(reply))
+        if "pointer" in reply and reply["pointer"] is None:  # a streams-only configuration
+            print(f"{'state:':<16} {reply.get('state', '-')}\n{'pointer:':<16} none (streams only)")
+        else:
+            print(format_status(reply))
         for stream in reply.get("streams") or []:
             print(format_stream(stream))
     elif args.action == "view":
