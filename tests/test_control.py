@@ -157,7 +157,7 @@ def test_malformed_and_unknown_requests_get_errors_and_server_lives(server):
     assert "'cmd'" in replies[2]["error"]
     assert "'cmd'" in replies[3]["error"]
     assert replies[4]["error"] == (
-        "unknown command 'shutdown' (known: status, pause, resume, reload)"
+        "unknown command 'shutdown' (known: status, pause, resume, reload, view)"
     )
     assert "malformed request" in replies[5]["error"]
     assert replies[6]["state"] == "running"

@@ -2,10 +2,15 @@
 
     omnidev ctl status [--socket PATH] [--json]
     omnidev ctl pause | resume | reload [--socket PATH] [--json]
+    omnidev ctl view NAME pan=DEG tilt=DEG fov=DEG [--socket PATH] [--json]
 
 ``status`` prints the daemon's state, source, tracker, sink, frame rate (frames
 per second), latency from frame capture to the sink (p50/p99, milliseconds),
-frame and drop counts, camera retries and uptime. ``--json`` prints the reply
+frame and drop counts, camera retries and uptime, then each video stream's
+state, fps, drops and latency (capture -> output, p50/p99) and its views.
+``view`` steers a running perspective view: ``pan=30`` is absolute,
+``pan=+10``/``pan=-10`` relative (``pan==-30``: absolute -30); the view moves
+there at its ``max_deg_s``. ``--json`` prints the reply
 object as received. A refused command or an unreachable daemon is a one-line
 error (exit status 2).
 """
@@ -18,15 +23,22 @@ from pathlib import Path
 from typing import Any
 
 from omnidev.daemon.control import COMMANDS, DEFAULT_SOCKET, ControlError, request
+from omnidev.ptz import parse_moves
 
 
 def register(sub: Any) -> None:
     p = sub.add_parser(
         "ctl",
-        help="control a running omnidevd (status, pause, resume, reload)",
+        help="control a running omnidevd (status, pause, resume, reload, view)",
         description="Send a command to omnidevd's control socket and print its reply.",
     )
     p.add_argument("action", choices=COMMANDS, help="command to send")
+    p.add_argument(
+        "words",
+        nargs="*",
+        metavar="ARG",
+        help="for view: the view's name, then pan=DEG tilt=DEG fov=DEG (+/-: relative)",
+    )
     p.add_argument(
         "--socket",
         type=Path,
@@ -44,13 +56,32 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     if not 0 < args.timeout <= 3600:
         raise ControlError(f"--timeout {args.timeout:g}: give seconds in (0, 3600]")
-    reply = request(args.socket, args.action, timeout=args.timeout)
+    extra: dict[str, Any] = {}
+    if args.action == "view":
+        if len(args.words) < 2:
+            raise ControlError("ctl view NAME pan=DEG [tilt=DEG] [fov=DEG]: give a view and a move")
+        parse_moves(args.words[1:])  # a malformed move fails here, before the daemon
+        extra = {"view": args.words[0], "moves": args.words[1:]}
+    elif args.words:
+        raise ControlError(f"ctl {args.action} takes no arguments, got {' '.join(args.words)}")
+    reply = request(args.socket, args.action, timeout=args.timeout, **extra)
     if not reply.get("ok"):
         raise ControlError(f"omnidevd refused {args.action!r}: {reply.get('error', 'no reason')}")
     if args.json:
         print(json.dumps(reply, sort_keys=True))
     elif args.action == "status":
-        print(format_status(reply))
+        if "pointer" in reply and reply["pointer"] is None:  # a streams-only configuration
+            print(f"{'state:':<16} {reply.get('state', '-')}\n{'pointer:':<16} none (streams only)")
+        else:
+            print(format_status(reply))
+        for stream in reply.get("streams") or []:
+            print(format_stream(stream))
+    elif args.action == "view":
+        t = reply.get("target") or {}
+        print(
+            f"omnidevd: view {reply.get('view')} -> pan {_num(t.get('pan'), '.2f')}, "
+            f"tilt {_num(t.get('tilt'), '.2f')}, fov {_num(t.get('fov'), '.2f')}"
+        )
     else:
         state = reply.get("state")
         message = reply.get("message")
@@ -135,3 +166,44 @@ def format_status(reply: dict[str, Any]) -> str:
         ("uptime", format_duration(reply.get("uptime_s"))),
     ]
     return "\n".join(f"{name + ':':<16} {value}" for name, value in rows)
+
+
+def format_stream(st: dict[str, Any]) -> str:
+    """The status block of one video stream (missing keys show ``-``).
+
+    >>> print(format_stream({"name": "room", "state": "running", "source": "v4l2:/dev/video2",
+    ...     "fps": 30.0, "latency_p50_ms": 12.0, "latency_p99_ms": 20.5, "frames": 900,
+    ...     "written": 898, "dropped_frames": 2, "camera_retries": 0, "views": [{"name": "ptz",
+    ...     "view": "perspective:640x480,fov=70", "outputs": ["v4l2:/dev/video10"],
+    ...     "pose": {"pan": 10.0, "tilt": 0.0, "fov": 70.0}}]}))  # doctest: +NORMALIZE_WHITESPACE
+    stream room:     running, v4l2:/dev/video2
+      fps:           30.00
+      latency:       p50 12.00 ms, p99 20.50 ms (capture -> output)
+      frames:        900 (written 898, dropped 2)
+      camera retries: 0
+      view ptz:      perspective:640x480,fov=70 -> v4l2:/dev/video10
+        (pan 10.00, tilt 0.00, fov 70.00)
+    """
+    rows = [
+        f"{'stream ' + str(st.get('name', '-')) + ':':<16} {st.get('state', '-')}, "
+        f"{st.get('source', '-')}",
+        f"  {'fps:':<14} {_num(st.get('fps'), '.2f')}",
+        f"  {'latency:':<14} p50 {_num(st.get('latency_p50_ms'), '.2f', ' ms')}, "
+        f"p99 {_num(st.get('latency_p99_ms'), '.2f', ' ms')} (capture -> output)",
+        f"  {'frames:':<14} {_num(st.get('frames'), 'd')} (written "
+        f"{_num(st.get('written'), 'd')}, dropped {_num(st.get('dropped_frames'), 'd')})",
+        f"  camera retries: {_num(st.get('camera_retries'), 'd')}",
+    ]
+    if st.get("error"):
+        rows.append(f"  {'error:':<14} {st['error']}")
+    for v in st.get("views") or []:
+        line = f"  {'view ' + str(v.get('name', '-')) + ':':<14} {v.get('view', '-')} -> "
+        line += ", ".join(str(o) for o in v.get("outputs") or [])
+        pose = v.get("pose")
+        if isinstance(pose, dict):
+            line += (
+                f" (pan {_num(pose.get('pan'), '.2f')}, tilt {_num(pose.get('tilt'), '.2f')}, "
+                f"fov {_num(pose.get('fov'), '.2f')})"
+            )
+        rows.append(line)
+    return "\n".join(rows)

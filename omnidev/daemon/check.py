@@ -17,7 +17,12 @@ passes the check starts:
   options, and a camera that is absent now is only reported (the daemon waits
   for it and starts when it appears);
 - control socket: its folder exists or can be made, and the path is not taken
-  by something other than a socket.
+  by something other than a socket;
+- each ``[[stream]]``: the calibration is loaded with its options, every view's
+  maps are built (a view the camera cannot fill fails here), every output's
+  plugin is found and the output opened for the view's size and aborted again
+  (a file output leaves nothing behind; standard output is only named), and the
+  source is checked as the pointer's is.
 
 Each failure is a :class:`~omnidev.errors.ConfigError` naming the file and the key.
 """
@@ -33,6 +38,7 @@ from typing import Any
 
 from omnidev import registry
 from omnidev.daemon.config import DaemonConfig
+from omnidev.daemon.streams import StreamConfig
 from omnidev.errors import ConfigError, OmnidevError
 
 
@@ -51,9 +57,65 @@ def _key(config: DaemonConfig, key: str) -> Iterator[None]:
 
 def check_config(config: DaemonConfig, socket: Path | None = None) -> list[str]:
     """Check every part of ``config`` as the start does; the lines say what was checked."""
-    from omnidev.sinks import GROUP as SINKS
+    notes: list[str] = []
+    if config.pointer:
+        notes += _check_pointer(config)
+    for stream in config.streams:
+        notes += _check_stream(config, stream)
+    path = socket or config.socket
+    with _key(config, "daemon.socket"):
+        _check_socket(path)
+    notes.append(f"control socket {path}")
+    return notes
+
+
+def _check_source(uri: str) -> str:
     from omnidev.sources import FILE_SCHEMES, open_source, split_uri
     from omnidev.sources import GROUP as SOURCES
+
+    scheme, rest, options = split_uri(uri)
+    source_opener = registry.get(SOURCES, scheme)
+    source_check: Callable[..., Any] | None = getattr(source_opener, "check", None)
+    if scheme in FILE_SCHEMES or source_check is None:
+        with open_source(uri) as src:
+            return f"source {src.name}: opened and closed"
+    return f"source {source_check(rest, options)}"
+
+
+def _check_stream(config: DaemonConfig, stream: StreamConfig) -> list[str]:
+    from omnidev.calibfile import load_camera
+    from omnidev.camera import build_maps
+    from omnidev.outputs import GROUP as OUTPUTS
+    from omnidev.outputs import OutputSpec, open_output, split_output_uri, uses_stdout
+
+    where = f"stream {stream.name!r}"
+    notes: list[str] = []
+    with _key(config, f"{where}.camera"):
+        camera = load_camera(stream.camera, stream.camera_options)
+    for v in stream.views:
+        vwhere = f"{where}.view {v.name!r}"
+        with _key(config, f"{vwhere}.view"):
+            try:
+                maps = build_maps(camera, v.view)
+            except ValueError as exc:
+                raise ConfigError(f"{stream.camera}: {exc}") from None
+        h, w = maps.shape
+        spec = OutputSpec((w, h), stream.fps or 30.0, ("bgr",), True, False, 1)
+        for uri in v.outputs:
+            with _key(config, f"{vwhere}.output"):
+                registry.get(OUTPUTS, split_output_uri(uri)[0])
+                if uses_stdout(uri):
+                    notes.append(f"{where}: output {uri}: standard output")
+                    continue
+                open_output(uri, spec).abort()
+            notes.append(f"{where}: view {v.name} {w}x{h} -> {uri}: opened and aborted")
+    with _key(config, f"{where}.source"):
+        notes.append(f"{where}: {_check_source(stream.source)}")
+    return notes
+
+
+def _check_pointer(config: DaemonConfig) -> list[str]:
+    from omnidev.sinks import GROUP as SINKS
     from omnidev.tracking import GROUP as TRACKERS
     from omnidev.tracking import open_tracker
 
@@ -82,19 +144,7 @@ def check_config(config: DaemonConfig, socket: Path | None = None) -> list[str]:
         notes.append(f"buttons {config.buttons.input}: opened and closed")
 
     with _key(config, "source.uri"):
-        scheme, rest, options = split_uri(config.source)
-        source_opener = registry.get(SOURCES, scheme)
-        source_check: Callable[..., Any] | None = getattr(source_opener, "check", None)
-        if scheme in FILE_SCHEMES or source_check is None:
-            with open_source(config.source) as src:
-                notes.append(f"source {src.name}: opened and closed")
-        else:
-            notes.append(f"source {source_check(rest, options)}")
-
-    path = socket or config.socket
-    with _key(config, "daemon.socket"):
-        _check_socket(path)
-    notes.append(f"control socket {path}")
+        notes.append(_check_source(config.source))
     return notes
 
 

@@ -41,6 +41,18 @@ queue = 1                     # frames waiting for the tracker (1 .. 16); when i
                               # camera's oldest frame is dropped, a file waits
 retry_initial_s = 0.5         # camera retry backoff: first wait ...
 retry_max_s = 10.0            # ... doubling up to this
+
+[[stream]]                    # optional, any number: video streams beside the pointer
+                              # (omnidev.daemon.streams); a configuration may have only
+                              # streams (then no [source], [tracker] or [sink]), only the
+                              # pointer, or both
+name = "room"
+source = "v4l2:/dev/video2"
+camera = "room.yml"
+[[stream.view]]
+name = "ptz"
+view = "perspective:1280x720,fov=70"
+output = "v4l2:/dev/video10"
 """
 
 from __future__ import annotations
@@ -50,6 +62,7 @@ from pathlib import Path
 from typing import Any
 
 from omnidev.daemon.control import DEFAULT_SOCKET
+from omnidev.daemon.streams import StreamConfig, parse_streams
 from omnidev.errors import ConfigError
 from omnidev.inputfile import read_toml
 from omnidev.screen import ScreenMapping, ScreenRect
@@ -137,6 +150,8 @@ class DaemonConfig:
     queue: int = 1
     retry_initial_s: float = 0.5
     retry_max_s: float = 10.0
+    streams: tuple[StreamConfig, ...] = ()
+    pointer: bool = True  # False: a streams-only configuration (source, tracker, sink "")
 
 
 def load_config(path: Path) -> DaemonConfig:
@@ -152,9 +167,13 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
     def fail(key: str, msg: str) -> ConfigError:
         return ConfigError(f"{path}: {key}: {msg}")
 
+    doc = dict(doc)
+    streams = parse_streams(doc.pop("stream", None), path)
+    pointer = bool(streams) is False or any(k in doc for k in ("source", "tracker", "sink"))
     for section, value in doc.items():
         if section not in _SECTIONS:
-            raise fail(section, f"unknown section (sections: {', '.join(_SECTIONS)})")
+            known = ", ".join([*_SECTIONS, "stream"])
+            raise fail(section, f"unknown section (sections: {known})")
         if not isinstance(value, dict):
             raise fail(section, "must be a table ([" + section + "])")
         for key in value:
@@ -185,6 +204,11 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
             raise fail(f"{section}.{key}", f"must be a number with {low} value <= {limit:g}")
         return value
 
+    if not pointer:
+        for section in ("filter", "buttons", "screen"):
+            if section in doc:
+                raise fail(section, "belongs to the pointer: give [source], [tracker] and [sink]")
+        doc = {**doc, "source": {"uri": "-"}, "tracker": {"name": ""}, "sink": {"name": ""}}
     source = get("source", "uri", str)
     if not source.strip():
         raise fail("source.uri", "is empty")
@@ -265,7 +289,7 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
         socket = path.parent / socket
     return DaemonConfig(
         path=path,
-        source=source,
+        source=source if pointer else "",
         tracker=tracker,
         sink=sink,
         screen=mapping,
@@ -278,6 +302,8 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
         queue=queue,
         retry_initial_s=retry_initial,
         retry_max_s=retry_max,
+        streams=streams,
+        pointer=pointer,
     )
 
 

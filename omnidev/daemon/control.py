@@ -7,7 +7,9 @@ daemon's user and root can talk to it. Protocol, UTF-8, newline-terminated::
     -> {"cmd": "status"}
     <- {"ok": true, "state": "running", "fps": 29.97, ...}
     -> {"cmd": "bogus"}
-    <- {"ok": false, "error": "unknown command 'bogus' (known: status, pause, resume, reload)"}
+    <- {"ok": false, "error": "unknown command 'bogus' (known: status, pause, ...)"}
+    -> {"cmd": "view", "view": "ptz", "moves": ["pan=+10", "fov=60"]}
+    <- {"ok": true, "view": "ptz", "target": {"pan": 10.0, "tilt": 0.0, "fov": 60.0}, ...}
 
 A connection may send several requests; each gets exactly one reply line.
 Malformed JSON, a non-object, a missing ``cmd`` or an unknown command get an
@@ -47,7 +49,7 @@ log = logging.getLogger(__name__)
 DEFAULT_SOCKET = Path("/run/omnidev/control.sock")
 """Where omnidevd listens unless its configuration says otherwise ([daemon] socket)."""
 
-COMMANDS: tuple[str, ...] = ("status", "pause", "resume", "reload")
+COMMANDS: tuple[str, ...] = ("status", "pause", "resume", "reload", "view")
 """The commands the server passes to its handler; anything else is refused."""
 
 MAX_REQUEST_BYTES = 65536
@@ -402,7 +404,7 @@ def request(path: Path, cmd: str, timeout: float = 2.0, **args: Any) -> dict[str
 
     Args:
         path: the control socket.
-        cmd: ``status``, ``pause``, ``resume`` or ``reload``.
+        cmd: ``status``, ``pause``, ``resume``, ``reload`` or ``view``.
         timeout: seconds to wait for connecting and for the reply.
         **args: extra request keys (JSON-serializable).
 
