@@ -32,7 +32,7 @@ counts ``other.spot``, ``other.hit``, ``other.off``, ``other.false``), ``frames`
 keyword options as ``--opt KEY=VALUE`` for the ``colour`` method's tuning
 (``saturated``, ``halo``, ``colour_ratio``, ``track_px``, ``busy_gain``,
 ``max_darker``, ``min_cross``, ``busy_events``, ``position``, ``new_margin``,
-``confirm``), and
+``confirm``, ``busy_confirm``), and
 ``cache`` (a directory: rendered frames are kept there and reused, so methods
 compared on the same scenes are rendered once; the frames depend only on the seed
 and ``frames``).
@@ -66,7 +66,7 @@ FILTERS: dict[str, tuple[float, float, float, float | None]] = {
 # the colour detector's options the task passes on (unset: -1 or "")
 _DETECTOR_OPTIONS = (
     "saturated", "halo", "colour_ratio", "track_px", "busy_gain", "max_darker", "min_cross",
-    "busy_events", "position", "new_margin", "confirm",
+    "busy_events", "position", "new_margin", "confirm", "busy_confirm",
 )  # fmt: skip
 _COUNTS = ("spot", "hit", "far", "missed", "off", "false", "hidden", "refused")
 
@@ -321,6 +321,7 @@ TASK = Task(
         "busy_events": -1,
         "new_margin": -1,
         "confirm": -1,
+        "busy_confirm": -1,
         "position": "",
         "cache": "",
     },

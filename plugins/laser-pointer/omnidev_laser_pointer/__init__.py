@@ -46,7 +46,7 @@ METHOD_OPTIONS: dict[str, dict[str, type]] = {
         "colour_ratio": float, "min_new": float, "max_elongation": float, "min_fill": float,
         "change_fraction": float, "track_px": float, "busy_gain": float, "fringe": float,
         "max_darker": float, "min_cross": float, "busy_events": int, "position": str,
-        "new_margin": int, "confirm": int,
+        "new_margin": int, "confirm": int, "busy_confirm": int,
     },
     "white-core": {
         "step": int, "rise": int, "core": int, "saturated": int, "min_area": int,

@@ -1,0 +1,708 @@
+"""The colour laser detector as committed at 9546817 (before its speed work), kept
+unchanged as the reference its fast path is tested against (tests/test_laser_colour_fast.py):
+the same spots within 0.1 px on rendered laser scenes. Not used by omnidev itself."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from omnidev.laser.spot import COLOURS, LaserSpot
+
+_CHANNEL = {"red": 2, "green": 1}
+_BLOCK = 16  # full-resolution px: the busy map's block size
+# grey levels below ``saturated`` the model must be for a pixel to be new (default of
+# ``new_margin``; tuning scenes 1000-1039: 30 found 51.2 % with 34 false spots, 20
+# 53.7 % with 31; held-out 600000-600041: 30 49.1 % with 48 false, 20 50.7 % with 79,
+# so it stays 30)
+_NEW_MARGIN = 30
+_POPCOUNT = np.array([bin(i).count("1") for i in range(256)], np.uint8)
+_LIN = (np.arange(256) / 255.0) ** 2.2  # grey level -> linear light (gamma 2.2)
+
+
+class ColourSpotDetector:
+    """Finds the laser spot in successive BGR frames of one camera (module docstring).
+
+    Keep one detector per camera: it carries the content model.
+
+    Args:
+        colour: "red", "green" or "any".
+        mask: H x W bool, True on the screen region; None: the whole image.
+        step: sampling step of the slide-change and busy tests, px (1: every pixel).
+        saturated: the laser channel's level where it clips, grey levels.
+        soft: grey levels below ``saturated`` where the centroid's weights start.
+        rise: grey levels of change that count (slide change, darker content).
+        halo: grey levels of colour excess and laser-channel brightness the ring
+            must have over the content around it.
+        colour_ratio: with the model: the laser channel's rise over the strongest other
+            channel's (fractions of their room below 255), the colour test on content
+            of the laser's own colour, where the ring test cannot see the spot.
+        fringe: largest fraction of the blob where the other channels clip too (a
+            white-cored spot's clipped laser channel reaches beyond its white core).
+        min_new: fraction of the blob's pixels that must be new.
+        min_area, max_area: blob size limits, full-resolution px.
+        max_elongation: largest principal-axis ratio (motion streaks).
+        min_fill: smallest blob area over its moment ellipse's area.
+        change_fraction: fraction of the screen changing at once that is a slide change.
+        busy_frames: frames a region stays busy.
+        track_px: how far (px) from the previous spot a blob may be where the model
+            cannot tell.
+        busy_gain: in busy regions, the ring gain (grey levels) a blob far from the
+            previous spot needs.
+        bands: the model is refreshed one row band of ``bands`` per frame.
+        max_darker: with the model: the largest fraction of the blob and the 3 px around
+            it where some channel got darker than the model by ``rise`` (a laser only
+            adds light; content of the laser's colour moving in replaces what was there).
+        min_cross: with the model: the smallest rise of the strongest other channel over
+            the model, linear light (0..1), on the upper half of the blob (a laser's light
+            leaks into every channel; content of its colour raises only its own). 0: off.
+        busy_events: frames of the last 16 with darker content that make a block busy.
+        new_margin: grey levels below ``saturated`` the model's laser channel must be
+            for a clipped pixel to be new.
+        confirm: frames in a row a spot must be found (each within ``track_px`` of the
+            one before) before it is reported (1: at once).
+        position: "centroid" (the soft-edged centroid of the clipped blob) or "fit" (the
+            beam centre from a Gaussian fit to the laser channel's rise over the model on
+            the unclipped pixels around the blob; the centroid where it does not fit).
+    """
+
+    def __init__(
+        self,
+        colour: str = "red",
+        mask: NDArray[np.bool_] | None = None,
+        *,
+        step: int = 4,
+        saturated: int = 245,
+        soft: int = 40,
+        rise: int = 30,
+        halo: float = 20.0,
+        colour_ratio: float = 1.15,
+        fringe: float = 0.6,
+        min_new: float = 0.1,
+        min_area: int = 2,
+        max_area: int = 2500,
+        max_elongation: float = 6.0,
+        min_fill: float = 0.35,
+        change_fraction: float = 0.2,
+        busy_frames: int = 45,
+        track_px: float = 80.0,
+        busy_gain: float = 60.0,
+        bands: int = 8,
+        max_darker: float = 0.2,
+        min_cross: float = 0.04,
+        busy_events: int = 2,
+        position: str = "centroid",
+        new_margin: int = _NEW_MARGIN,
+        confirm: int = 1,
+    ) -> None:
+        if colour not in COLOURS:
+            raise ValueError(f"colour must be one of {', '.join(COLOURS)}, got {colour!r}")
+        if step < 1:
+            raise ValueError(f"step must be >= 1 pixel, got {step}")
+        if not 0 < rise < 255 or not _NEW_MARGIN < saturated <= 255 or not 0 < soft < saturated:
+            raise ValueError(
+                f"need rise 1..254, saturated {_NEW_MARGIN + 1}..255 and 0 < soft < saturated,"
+                f" got {rise}, {saturated}, {soft}"
+            )
+        if not 1 <= min_area <= max_area:
+            raise ValueError(f"need 1 <= min_area <= max_area, got {min_area}, {max_area}")
+        if max_elongation < 1.0 or not 0.0 <= min_fill <= 1.0 or not 0.0 <= min_new <= 1.0:
+            raise ValueError("need max_elongation >= 1, 0 <= min_fill <= 1, 0 <= min_new <= 1")
+        if not 0 < change_fraction <= 1 or bands < 1 or busy_frames < 0 or track_px <= 0:
+            raise ValueError(
+                "need 0 < change_fraction <= 1, bands >= 1, busy_frames >= 0, track_px > 0"
+            )
+        self.colour = colour
+        self.channels = (2, 1) if colour == "any" else (_CHANNEL[colour],)
+        self.mask = None if mask is None else np.ascontiguousarray(mask, dtype=bool)
+        self.step = step
+        self.saturated = saturated
+        self.soft = soft
+        self.rise = rise
+        self.halo = halo
+        self.colour_ratio = colour_ratio
+        self.fringe = fringe
+        self.min_new = min_new
+        self.min_area = min_area
+        self.max_area = max_area
+        self.max_elongation = max_elongation
+        self.min_fill = min_fill
+        self.change_fraction = change_fraction
+        self.busy_frames = busy_frames
+        self.track_px = track_px
+        self.busy_gain = busy_gain
+        self.bands = bands
+        if not 0.0 <= max_darker <= 1.0 or position not in ("fit", "centroid"):
+            raise ValueError(
+                f"need 0 <= max_darker <= 1 and position 'fit' or 'centroid', got {max_darker},"
+                f" {position!r}"
+            )
+        self.max_darker = max_darker
+        self.min_cross = min_cross
+        if not 1 <= busy_events <= 16:
+            raise ValueError(f"need busy_events 1..16, got {busy_events}")
+        self.busy_events = busy_events
+        self.position = position
+        if not 1 <= new_margin < saturated:
+            raise ValueError(f"need 1 <= new_margin < saturated, got {new_margin}")
+        self.new_margin = new_margin
+        if not 1 <= confirm <= 10:
+            raise ValueError(f"need confirm 1..10, got {confirm}")
+        self.confirm = confirm
+        self._run = 0  # frames in a row with a spot, each near the one before
+        self.half = math.ceil(math.sqrt(max_area / math.pi)) + 12  # window half size, px
+        self._k3 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
+        self._k7 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
+        self._k11 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))
+        self._k19 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (19, 19))
+        self._k25 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (25, 25))
+        self.background: NDArray[np.uint8] | None = None
+        self.slide_changes = 0  # frames judged a slide change (for figures)
+        self.refused = 0  # frames refused as ambiguous (for figures)
+        self._planes: dict[int, NDArray[np.uint8]] = {}  # laser channels of the model
+        self._low: dict[int, NDArray[np.uint8]] = {}  # where a clipped pixel would be new
+        self._frame = 0
+        self._mask8: NDArray[np.uint8] | None = None
+        self._mask_lo: NDArray[np.uint8] | None = None
+        self._mask_count = 1
+        self._busy = np.zeros((0, 0), np.int32)  # per block: frame until which it is busy
+        self._history = np.zeros((0, 0), np.uint16)  # per block: frames with darker content
+        self._last: LaserSpot | None = None
+        # the model before this frame's darker pixels replaced it: (row, col, values)
+        self._prefix: tuple[int, int, NDArray[np.uint8]] | None = None
+
+    def reset(self) -> None:
+        """Forget the content model (the next frame starts it again)."""
+        self.background = None
+        self._last = None
+        self._run = 0
+
+    # -- per frame -------------------------------------------------------------------
+
+    def detect(self, image: NDArray[np.uint8]) -> LaserSpot | None:
+        """The laser spot in a BGR H x W x 3 uint8 frame, or None; updates the model."""
+        if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+            raise ValueError(f"need an H x W x 3 uint8 BGR image, got {image.dtype} {image.shape}")
+        h, w = image.shape[:2]
+        if self.mask is not None and self.mask.shape != (h, w):
+            raise ValueError(f"mask is {self.mask.shape[1]}x{self.mask.shape[0]}, image {w}x{h}")
+        bg = self.background
+        if bg is None or bg.shape != image.shape:
+            self._start(image)  # nothing to compare with yet
+            spot = None
+        else:
+            spot = self._detect(image, bg)
+        last, self._last = self._last, spot
+        self._frame += 1
+        if spot is None:
+            self._run = 0
+            return None
+        near = last is not None and math.hypot(last.u - spot.u, last.v - spot.v) <= self.track_px
+        self._run = self._run + 1 if near else 1
+        return spot if self._run >= self.confirm else None
+
+    def _detect(self, image: NDArray[np.uint8], bg: NDArray[np.uint8]) -> LaserSpot | None:
+        k = self.step
+        lo, bg_lo = image[::k, ::k], bg[::k, ::k]
+        changed = 0
+        dec_any: NDArray[Any] | None = None
+        for c in self.channels:
+            lc, bc = np.ascontiguousarray(lo[:, :, c]), np.ascontiguousarray(bg_lo[:, :, c])
+            o, bo = self._others(lo, c), self._others(bg_lo, c)
+            dec = cv2.max(cv2.subtract(bc, lc), cv2.subtract(bo, o))
+            ch = cv2.max(cv2.max(cv2.subtract(lc, bc), dec), cv2.subtract(o, bo))
+            if self._mask_lo is not None:
+                ch = cv2.bitwise_and(ch, self._mask_lo)
+                dec = cv2.bitwise_and(dec, self._mask_lo)
+            changed = max(changed, cv2.countNonZero(cv2.threshold(ch, self.rise - 1, 255, 0)[1]))
+            dec_any = dec if dec_any is None else np.asarray(cv2.max(dec_any, dec), np.uint8)
+        assert dec_any is not None
+        if changed > self.change_fraction * self._mask_count:
+            self.slide_changes += 1
+            return self._restart(image)
+        self._mark_busy(dec_any)
+        self._prefix = None
+        self._fix_darker(image, dec_any)
+        cands = []
+        for c in self.channels:
+            lc = np.asarray(cv2.extractChannel(image, c), np.uint8)
+            clipped = cv2.threshold(lc, self.saturated - 1, 255, cv2.THRESH_BINARY)[1]
+            cands.append((c, cv2.bitwise_and(clipped, self._low[c])))
+        spot = self._best(image, cands, bg, near_only=False)
+        self._update(image, spot)
+        return spot
+
+    @staticmethod
+    def _others(img: NDArray[np.uint8], c: int) -> NDArray[np.uint8]:
+        a, b = (o for o in (0, 1, 2) if o != c)
+        out = cv2.max(np.ascontiguousarray(img[:, :, a]), np.ascontiguousarray(img[:, :, b]))
+        return np.asarray(out, np.uint8)
+
+    # -- the model -------------------------------------------------------------------
+
+    def _start(self, image: NDArray[np.uint8]) -> None:
+        h, w = image.shape[:2]
+        k = self.step
+        if self.mask is not None:
+            self._mask8 = self.mask.astype(np.uint8) * 255
+            self._mask_lo = np.ascontiguousarray(self._mask8[::k, ::k])
+            self._mask_count = max(1, cv2.countNonZero(self._mask_lo))
+        else:
+            self._mask8 = self._mask_lo = None
+            self._mask_count = len(range(0, h, k)) * len(range(0, w, k))
+        self._busy = np.full((-(-h // _BLOCK), -(-w // _BLOCK)), -1, np.int32)
+        self._history = np.zeros(self._busy.shape, np.uint16)
+        self._set_model(image.copy())
+
+    def _set_model(self, bg: NDArray[np.uint8]) -> None:
+        self.background = bg
+        self._planes = {c: np.ascontiguousarray(bg[:, :, c]) for c in self.channels}
+        self._low = {c: self._low_of(p, slice(None), slice(None)) for c, p in self._planes.items()}
+
+    def _low_of(self, plane: NDArray[np.uint8], rows: slice, cols: slice) -> NDArray[np.uint8]:
+        """255 where the model's laser channel is clearly below clipping (a pixel that
+        clips there now is new) and inside the screen, else 0."""
+        low = cv2.threshold(
+            np.ascontiguousarray(plane[rows, cols]),
+            self.saturated - self.new_margin - 1,
+            255,
+            cv2.THRESH_BINARY_INV,
+        )[1]
+        if self._mask8 is not None:
+            low = cv2.bitwise_and(low, np.ascontiguousarray(self._mask8[rows, cols]))
+        out: NDArray[np.uint8] = np.asarray(low, np.uint8)
+        return out
+
+    def _model_changed(self, rows: slice, cols: slice = slice(None)) -> None:
+        bg = self.background
+        assert bg is not None
+        for c, plane in self._planes.items():
+            plane[rows, cols] = bg[rows, cols, c]
+            self._low[c][rows, cols] = self._low_of(plane, rows, cols)
+
+    def _mark_busy(self, dec: NDArray[np.uint8]) -> None:
+        """Blocks where much of the content got darker (>= 10 % of the samples by
+        ``rise``) in two of the last 16 frames are busy for ``busy_frames`` frames,
+        with their neighbours."""
+        self._history = np.asarray((self._history << 1) & 0xFFFF, np.uint16)
+        if self.busy_frames == 0:
+            return
+        hit = cv2.threshold(dec, self.rise - 1, 1, 0)[1]
+        if not cv2.countNonZero(hit):
+            return
+        bh, bw = self._busy.shape
+        kb = max(1, _BLOCK // self.step)
+        pad_h, pad_w = bh * kb - hit.shape[0], bw * kb - hit.shape[1]
+        if pad_h > 0 or pad_w > 0:
+            hit = cv2.copyMakeBorder(hit, 0, max(0, pad_h), 0, max(0, pad_w), cv2.BORDER_CONSTANT)
+        frac = hit[: bh * kb, : bw * kb].reshape(bh, kb, bw, kb).mean(axis=(1, 3))
+        self._history[frac >= 0.1] |= 1
+        counts = _POPCOUNT[self._history & 0xFF] + _POPCOUNT[self._history >> 8]
+        many = (counts >= self.busy_events).astype(np.uint8)
+        busy = cv2.dilate(many, np.ones((3, 3), np.uint8)).astype(bool)
+        self._busy[busy] = self._frame + self.busy_frames
+
+    def _is_busy(self, u: float, v: float) -> bool:
+        bh, bw = self._busy.shape
+        r = min(bh - 1, max(0, int(v) // _BLOCK))
+        c = min(bw - 1, max(0, int(u) // _BLOCK))
+        return bool(self._busy[r, c] >= self._frame)
+
+    def _fix_darker(self, image: NDArray[np.uint8], dec: NDArray[np.uint8]) -> None:
+        """Where the frame is darker than the model by ``rise`` the model is out of date
+        (content changed, or it held a spot): those pixels take the frame's values."""
+        bg = self.background
+        assert bg is not None
+        hit = cv2.threshold(dec, self.rise - 1, 255, 0)[1]
+        if not cv2.countNonZero(hit):
+            return
+        k = self.step
+        h, w = image.shape[:2]
+        x, y, bw, bh = cv2.boundingRect(hit)
+        r0, c0 = max(0, (y - 1) * k), max(0, (x - 1) * k)
+        r1, c1 = min(h, (y + bh + 1) * k), min(w, (x + bw + 1) * k)
+        sub = hit[r0 // k : -(-r1 // k), c0 // k : -(-c1 // k)]
+        full = np.repeat(np.repeat(sub, k, axis=0), k, axis=1)[: r1 - r0, : c1 - c0]
+        grown = cv2.dilate(full, np.ones((2 * k + 1,) * 2, np.uint8)).view(bool)
+        self._prefix = (r0, c0, bg[r0:r1, c0:c1].copy())
+        np.copyto(bg[r0:r1, c0:c1], image[r0:r1, c0:c1], where=grown[..., None])
+        self._model_changed(slice(r0, r1), slice(c0, c1))
+
+    def _restart(self, image: NDArray[np.uint8]) -> LaserSpot | None:
+        """A slide change: look for the spot near the previous one; the model restarts
+        from the frame without the spot's footprint."""
+        cands = []
+        for c in self.channels:
+            clipped = cv2.threshold(cv2.extractChannel(image, c), self.saturated - 1, 255, 0)[1]
+            if self._mask8 is not None:
+                clipped = cv2.bitwise_and(clipped, self._mask8)
+            cands.append((c, clipped))
+        spot = self._best(image, cands, None, near_only=True)
+        bg = image.copy()
+        if spot is not None:
+            self._carve(image, bg, spot)
+        self._set_model(bg)
+        return spot
+
+    def _carve(self, image: NDArray[np.uint8], bg: NDArray[np.uint8], spot: LaserSpot) -> None:
+        """Take the spot out of model ``bg``: in its window, pixels where a laser channel
+        stands above the window's grey opening get the opening's values."""
+        h, w = image.shape[:2]
+        v0, v1, u0, u1 = self._window(spot.u, spot.v, h, w)
+        win = image[v0:v1, u0:u1]
+        size = 2 * math.ceil(1.5 * math.sqrt(max(spot.area, 4) / math.pi)) + 3
+        opened = cv2.morphologyEx(win, cv2.MORPH_OPEN, np.ones((size, size), np.uint8))
+        foot = np.zeros(win.shape[:2], np.uint8)
+        for c in self.channels:
+            foot |= (cv2.subtract(win[:, :, c], opened[:, :, c]) >= self.rise // 2).astype(np.uint8)
+        grown = cv2.dilate(foot, self._k7).view(bool)
+        bg[v0:v1, u0:u1][grown] = opened[grown]
+
+    def _update(self, image: NDArray[np.uint8], spot: LaserSpot | None) -> None:
+        """Blend one row band of the frame into the model, except where a laser channel
+        newly clipped (a spot, found or not) and the spot's window."""
+        bg = self.background
+        assert bg is not None
+        h, w = image.shape[:2]
+        band = -(-h // self.bands)
+        b0 = (self._frame % self.bands) * band
+        b1 = min(h, b0 + band)
+        if b0 >= b1:
+            return
+        keep = np.zeros((b1 - b0, w), np.uint8)
+        for c, plane in self._planes.items():
+            clipped = image[b0:b1, :, c] >= self.saturated
+            keep |= (clipped & (plane[b0:b1] < self.saturated - self.new_margin)).astype(np.uint8)
+        if spot is not None:
+            v0, v1, u0, u1 = self._window(spot.u, spot.v, h, w)
+            if v0 < b1 and b0 < v1:
+                keep[max(v0, b0) - b0 : min(v1, b1) - b0, u0:u1] = 1
+        if keep.any():  # and the halo around it, which would leave darker pixels behind
+            keep = cv2.dilate(keep, self._k25)
+        saved = bg[b0:b1].copy()
+        cv2.addWeighted(image[b0:b1], 0.5, bg[b0:b1], 0.5, 0.0, dst=bg[b0:b1])
+        if keep.any():
+            sel = keep.view(bool)
+            bg[b0:b1][sel] = saved[sel]
+        self._model_changed(slice(b0, b1))
+
+    def _window(self, u: float, v: float, h: int, w: int) -> tuple[int, int, int, int]:
+        r = self.half
+        cu, cv_ = round(u), round(v)
+        return max(0, cv_ - r), min(h, cv_ + r + 1), max(0, cu - r), min(w, cu + r + 1)
+
+    # -- candidates ------------------------------------------------------------------
+
+    def _best(
+        self,
+        image: NDArray[np.uint8],
+        cands: list[tuple[int, NDArray[Any]]],
+        bg: NDArray[np.uint8] | None,
+        *,
+        near_only: bool,
+    ) -> LaserSpot | None:
+        """The spot among candidate pixels per laser channel (``bg`` None: no model)."""
+        h, w = image.shape[:2]
+        last = self._last
+        seeds: list[tuple[int, int, int]] = []
+        for c, cand in cands:
+            if last is not None:  # clipped pixels near the last spot are candidates too
+                v0, v1, u0, u1 = self._window(last.u, last.v, h, w)
+                near = cv2.threshold(image[v0:v1, u0:u1, c], self.saturated - 1, 255, 0)[1]
+                if self._mask8 is not None:
+                    near = cv2.bitwise_and(near, self._mask8[v0:v1, u0:u1])
+                if near_only:
+                    cand = np.zeros_like(cand)
+                cand[v0:v1, u0:u1] = cv2.max(cand[v0:v1, u0:u1], near)
+            elif near_only:
+                continue
+            if not cv2.countNonZero(cand):
+                continue
+            x0, y0, bw, bh = cv2.boundingRect(cand)
+            _, lab, st, _ = cv2.connectedComponentsWithStats(
+                np.ascontiguousarray(cand[y0 : y0 + bh, x0 : x0 + bw]), connectivity=8
+            )
+            order = np.argsort(-st[1:, cv2.CC_STAT_AREA]) + 1
+            for j in order[:64]:  # a pixel of each group, the largest groups first
+                gx, gy = st[j, cv2.CC_STAT_LEFT], st[j, cv2.CC_STAT_TOP]
+                row = lab[gy, gx : gx + st[j, cv2.CC_STAT_WIDTH]]
+                gx += int(np.argmax(row == j))
+                seeds.append((c, int(x0 + gx), int(y0 + gy)))
+        found: list[LaserSpot] = []
+        measured = np.zeros((h, w), bool)
+        tried = 0
+        for c, su, sv in seeds:
+            if measured[sv, su]:
+                continue
+            spot, blob_box = self._measure(image, bg, c, su, sv, h, w)
+            tried += 1
+            if blob_box is not None:
+                v0, v1, u0, u1 = blob_box
+                measured[v0:v1, u0:u1] = True
+            else:
+                measured[sv, su] = True
+            if spot is not None:
+                found.append(spot)
+            if tried >= 48:
+                break
+        if not found:
+            return None
+        found.sort(key=lambda s: -s.score)
+        best = found[0]
+        for other in found[1:]:
+            far = math.hypot(other.u - best.u, other.v - best.v) > 2 * self.half
+            if far and other.score >= 0.5 * best.score:
+                self.refused += 1
+                return None
+        return best
+
+    def _measure(
+        self,
+        image: NDArray[np.uint8],
+        bg: NDArray[np.uint8] | None,
+        c: int,
+        su: int,
+        sv: int,
+        h: int,
+        w: int,
+    ) -> tuple[LaserSpot | None, tuple[int, int, int, int] | None]:
+        """The blob of clipped laser channel ``c`` through full-res pixel (su, sv): the
+        spot if it passes, and the image box the blob covers (None: too large or none)."""
+        v0, v1, u0, u1 = self._window(float(su), float(sv), h, w)
+        win = image[v0:v1, u0:u1]
+        lc = win[:, :, c]
+        sel, box = self._blob(lc >= self.saturated, su - u0, sv - v0)
+        if box is None:
+            return None, None
+        ibox = (box[0] + v0, box[1] + v0, box[2] + u0, box[3] + u0)
+        if sel is None:
+            return None, ibox
+        last = self._last
+        near = last is not None and math.hypot(last.u - su, last.v - sv) <= self.track_px
+        if bg is None and not near:
+            return None, ibox
+        busy = bg is not None and self._is_busy(su, sv)
+        if busy and not near:
+            # content moves here: only a blob far more of the laser's colour than its
+            # surroundings (its ring) starts a track
+            g = self._ring_gain(win, sel, c)
+            if g is None or g < self.busy_gain:
+                return None, ibox
+        if bg is not None:
+            # new: enough of the blob was not clipped in the content model
+            was = self._planes[c][v0:v1, u0:u1][sel]
+            if np.count_nonzero(was < self.saturated - self.new_margin) < self.min_new * was.size:
+                return None, ibox
+        model = None if bg is None else self._model_window(bg, v0, v1, u0, u1)
+        if model is not None and not (
+            self._adds_light(win, model, sel) and self._cross_rise(win, model, sel, c)
+        ):
+            return None, ibox
+        gain = self._colour(win, None if bg is None or busy else bg[v0:v1, u0:u1], sel, c)
+        if gain is None:
+            return None, ibox
+        soft = np.clip((lc.astype(np.float64) - (self.saturated - self.soft)) / self.soft, 0, 1)
+        region = cv2.dilate(sel.view(np.uint8), self._k3).view(bool)
+        wgt = soft[region]
+        ys, xs = np.nonzero(region)
+        tot = float(wgt.sum())
+        area = int(np.count_nonzero(sel))
+        pu, pv = float((wgt * xs).sum()) / tot, float((wgt * ys).sum()) / tot
+        if model is not None and self.position == "fit":
+            fit = self._fit_centre(win, model, sel, c)
+            reach = 0.25 * (box[3] - box[2] + box[1] - box[0]) + 1.0
+            if fit is not None and math.hypot(fit[0] - pu, fit[1] - pv) <= reach:
+                pu, pv = fit
+        spot = LaserSpot(
+            pu + u0,
+            pv + v0,
+            area,
+            int(lc[sel].max()),
+            area * gain,
+            "red" if c == 2 else "green",
+        )
+        return spot, ibox
+
+    def _model_window(
+        self, bg: NDArray[np.uint8], v0: int, v1: int, u0: int, u1: int
+    ) -> NDArray[np.uint8]:
+        """The content model in a window as it was before this frame's darker pixels
+        replaced it."""
+        out = bg[v0:v1, u0:u1]
+        if self._prefix is None:
+            return out
+        r0, c0, saved = self._prefix
+        a0, a1 = max(v0, r0), min(v1, r0 + saved.shape[0])
+        b0, b1 = max(u0, c0), min(u1, c0 + saved.shape[1])
+        if a0 >= a1 or b0 >= b1:
+            return out
+        out = out.copy()
+        out[a0 - v0 : a1 - v0, b0 - u0 : b1 - u0] = saved[a0 - r0 : a1 - r0, b0 - c0 : b1 - c0]
+        return out
+
+    def _adds_light(
+        self, win: NDArray[np.uint8], model: NDArray[np.uint8], sel: NDArray[np.bool_]
+    ) -> bool:
+        """A laser only adds light: over the blob and the 3 px around it, at most
+        ``max_darker`` of the pixels may have any channel darker than the model by
+        ``rise`` (content of the laser's colour moving in replaces what was there)."""
+        grown = cv2.dilate(sel.view(np.uint8), self._k7).view(bool)
+        drop = cv2.subtract(model, win).max(axis=2)[grown]
+        return bool(np.count_nonzero(drop >= self.rise) <= self.max_darker * drop.size)
+
+    def _cross_rise(
+        self,
+        win: NDArray[np.uint8],
+        model: NDArray[np.uint8],
+        sel: NDArray[np.bool_],
+        c: int,
+    ) -> bool:
+        """A laser's light reaches the other channels too (a colour filter passes some of
+        every wavelength; chroma subsampling adds more): over the blob, the upper half of
+        the strongest other channel's rise over the model, in linear light, is at least
+        ``min_cross`` (content of the laser's colour appearing raises only its channel;
+        where the other channels already clip, nothing is asked)."""
+        if self.min_cross <= 0:
+            return True
+        a, b = (o for o in (0, 1, 2) if o != c)
+        now = np.maximum(win[:, :, a], win[:, :, b])[sel]
+        was = np.maximum(model[:, :, a], model[:, :, b])[sel]
+        room = _LIN[255] - _LIN[was]
+        rise = _LIN[now] - _LIN[was]
+        srt = np.sort(np.where(room < self.min_cross, self.min_cross, rise))
+        return bool(srt[srt.size // 2 :].mean() >= self.min_cross)
+
+    def _fit_centre(
+        self,
+        win: NDArray[np.uint8],
+        model: NDArray[np.uint8],
+        sel: NDArray[np.bool_],
+        c: int,
+    ) -> tuple[float, float] | None:
+        """The beam's centre (window px) from the laser channel's rise over the model in
+        linear light on the unclipped pixels around the blob: a weighted least-squares fit
+        of ``ln rise = a + b u + c v + d (u^2 + v^2)`` (a round beam; the clipped core,
+        whose shape follows the content under it, is left out). None if it does not fit."""
+        r = max(2.0, math.sqrt(np.count_nonzero(sel) / math.pi))
+        size = 2 * math.ceil(r + 4) + 1
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+        grown = cv2.dilate(sel.view(np.uint8), ker).view(bool)
+        lc = win[:, :, c]
+        rise = _LIN[lc] - _LIN[model[:, :, c]]
+        use = grown & ~sel & (lc < self.saturated) & (rise > 0.02)
+        n = int(np.count_nonzero(use))
+        if n < 8:
+            return None
+        ys, xs = np.nonzero(use)
+        y = np.log(rise[use])
+        w = rise[use]
+        xm, ym = float(xs.mean()), float(ys.mean())
+        dx, dy = xs - xm, ys - ym
+        A = np.column_stack([np.ones(n), dx, dy, dx * dx + dy * dy])
+        sol, *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
+        d = float(sol[3])
+        if not d < -1e-4:
+            return None
+        return xm - float(sol[1]) / (2 * d), ym - float(sol[2]) / (2 * d)
+
+    def _blob(
+        self, binary: NDArray[np.bool_], su: int, sv: int
+    ) -> tuple[NDArray[np.bool_] | None, tuple[int, int, int, int] | None]:
+        """The connected blob of ``binary`` through (su, sv) if its size and shape fit,
+        and its box (rows r0:r1, cols c0:c1 of the window; None if it is not there)."""
+        if not binary[sv, su]:
+            return None, None
+        _, lab = cv2.connectedComponents(binary.view(np.uint8), connectivity=8)
+        sel: NDArray[np.bool_] = lab == lab[sv, su]
+        ys, xs = np.nonzero(sel)
+        box = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
+        area = int(ys.size)
+        if not self.min_area <= area <= self.max_area:
+            return None, box
+        wh, ww = binary.shape
+        if box[0] == 0 or box[2] == 0 or box[1] == wh or box[3] == ww:
+            return None, box  # runs out of the window: larger than a spot
+        if area >= 5:
+            xm, ym = xs.mean(), ys.mean()
+            cxx = float(((xs - xm) ** 2).mean()) + 1 / 12
+            cyy = float(((ys - ym) ** 2).mean()) + 1 / 12
+            cxy = float(((xs - xm) * (ys - ym)).mean())
+            tr, det = cxx + cyy, cxx * cyy - cxy * cxy
+            disc = math.sqrt(max(0.0, tr * tr / 4 - det))
+            l1, l2 = tr / 2 + disc, max(tr / 2 - disc, 1e-9)
+            if math.sqrt(l1 / l2) > self.max_elongation:
+                return None, box
+            if area / (4 * math.pi * math.sqrt(l1 * l2)) < self.min_fill:
+                return None, box
+        return sel, box
+
+    def _colour(
+        self,
+        win: NDArray[np.uint8],
+        ref: NDArray[np.uint8] | None,
+        sel: NDArray[np.bool_],
+        c: int,
+    ) -> float | None:
+        """Whether blob ``sel`` is of the laser's colour, by any of: its fringe (the other
+        channels clip over at most ``fringe`` of it: a white or yellow patch clips them
+        all over), its ring (:meth:`_ring_gain`), or, with the model ``ref``, the halo's
+        rise (:meth:`_rise_ratio`). Returns a score (grey levels) or None."""
+        a, b = (o for o in (0, 1, 2) if o != c)
+        other_clipped = np.maximum(win[:, :, a], win[:, :, b])[sel] >= self.saturated
+        fringe = float(np.mean(other_clipped))
+        gain = self._ring_gain(win, sel, c)
+        if gain is not None:
+            return gain
+        if fringe <= self.fringe:
+            return self.halo * (1.0 + (self.fringe - fringe))
+        if ref is not None and self._rise_ratio(win, ref, sel, c) >= self.colour_ratio:
+            return self.halo
+        return None
+
+    def _rise_ratio(
+        self, win: NDArray[np.uint8], ref: NDArray[np.uint8], sel: NDArray[np.bool_], c: int
+    ) -> float:
+        """In the halo (3 px around the blob, where the laser channel does not clip): the
+        laser channel's rise over the model against the strongest other channel's, in
+        linear light (gamma 2.2 assumed). A laser adds ``crosstalk`` (< 1/2) as much to
+        the others; white or yellow content appearing adds about as much."""
+        grown = cv2.dilate(sel.view(np.uint8), self._k7).view(bool)
+        halo = grown & ~sel & (win[:, :, c] < self.saturated)
+        if np.count_nonzero(halo) < 3:
+            return 0.0
+        now = _LIN[win[halo]]
+        before = _LIN[ref[halo]]
+        d = (now - before).clip(0.0)
+        a, b = (o for o in (0, 1, 2) if o != c)
+        rise_c = float(d[:, c].sum())
+        rise_o = float(np.maximum(d[:, a], d[:, b]).sum())
+        return rise_c / max(rise_o, 1e-4) if rise_c > 0.05 else 0.0
+
+    def _ring_gain(self, win: NDArray[np.uint8], sel: NDArray[np.bool_], c: int) -> float | None:
+        """How much more of the laser's colour the ring of pixels next to the blob is (the
+        mean of its upper half) than the content around it (the median over a band
+        ``r .. r + 4`` px outside, r the blob's radius but >= 4), in grey levels; None
+        if it, or the ring's lift in the laser channel, is below ``halo``."""
+        dist = cv2.distanceTransform((~sel).view(np.uint8), cv2.DIST_L2, 3)
+        ring = (dist > 0) & (dist <= 1.5)
+        r = max(4.0, math.sqrt(np.count_nonzero(sel) / math.pi))
+        outer = (dist >= r) & (dist <= r + 4)
+        if not ring.any() or not outer.any():
+            return None
+        wi = win.astype(np.int16)
+        a, b = (o for o in (0, 1, 2) if o != c)
+        excess = wi[:, :, c] - np.maximum(wi[:, :, a], wi[:, :, b])
+
+        def upper(x: NDArray[np.int16]) -> float:
+            srt = np.sort(x)
+            return float(srt[srt.size // 2 :].mean())
+
+        gain = upper(excess[ring]) - float(np.median(excess[outer]))
+        lift = upper(wi[:, :, c][ring]) - float(np.median(wi[:, :, c][outer]))
+        if gain < self.halo or lift < self.halo:
+            return None
+        return gain
