@@ -14,7 +14,9 @@ Per frame:
    fixed mean brightness (a global lighting change is not motion);
 2. a kept background subtractor (OpenCV's MOG2, or KNN: ``method``) marks foreground
    in colour (no shadow detection: a dark object in front of a lighter wall would be taken
-   for a shadow); a morphological opening then closing cleans the mask;
+   for a shadow); MOG2 learns at 1 / ``history`` from the first frame (OpenCV's default
+   learns faster while its history fills, and absorbs an object that enters early), KNN at
+   OpenCV's automatic rate; a morphological opening then closing cleans the mask;
 3. connected blobs of at least ``min_area_deg2`` square degrees; blobs touching the left
    and the right edge of a full 360-degree panorama on the same rows are one blob (an
    object crossing the seam), its centroid computed across the seam;
@@ -62,8 +64,9 @@ class AutoFrameConfig:
     method: str = "mog2"
     deg_per_px: float = 1.0
     history: int = 300
+    fixed_rate: bool = True  # MOG2 learns at 1 / history from the first frame (not faster)
     var_threshold: float = 25.0
-    min_area_deg2: float = 120.0
+    min_area_deg2: float = 200.0
     max_foreground: float = 0.3  # share of the frame: above it the frame is skipped
     open_px: int = 3
     close_px: int = 5
@@ -71,7 +74,7 @@ class AutoFrameConfig:
     confirm_frames: int = 4
     persist_s: float = 2.0
     switch_ratio: float = 2.0
-    switch_hold_s: float = 1.0
+    switch_hold_s: float = 0.6
     lost_s: float = 2.0
     alpha: float = 0.5
     beta: float = 0.1
@@ -201,6 +204,9 @@ class AutoFramer:
             )
         self.kernel_open = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (config.open_px,) * 2)
         self.kernel_close = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (config.close_px,) * 2)
+        # KNN fills its sample buffer at the learning rate: it needs OpenCV's automatic one
+        fixed = config.fixed_rate and config.method == "mog2"
+        self.learning_rate = 1.0 / config.history if fixed else -1.0
         self.tracks: list[_Track] = []
         self.followed: _Track | None = None
         self.challenger: tuple[int, float] | None = None  # track id, since when
@@ -227,7 +233,7 @@ class AutoFramer:
         mean = float(img.mean())
         if mean > 1.0:
             img = cv2.convertScaleAbs(img, alpha=110.0 / mean)
-        fg = self.subtractor.apply(img)
+        fg = self.subtractor.apply(img, learningRate=self.learning_rate)
         raw = (fg == 255).astype(np.uint8)
         opened = cv2.morphologyEx(raw, cv2.MORPH_OPEN, self.kernel_open)
         mask = np.asarray(cv2.morphologyEx(opened, cv2.MORPH_CLOSE, self.kernel_close), np.uint8)
@@ -350,6 +356,7 @@ class Follower:
         self.max_deg_s = max_deg_s
         self.pan = wrap_deg(pan_deg)
         self.tilt = tilt_deg
+        self.arrived = False  # whether the last step reached its target
 
     def step(self, target: Target | tuple[float, float] | None, dt: float) -> tuple[float, float]:
         """The pose after ``dt`` seconds of moving towards ``target`` (None: stay)."""
@@ -359,6 +366,7 @@ class Follower:
             dist = math.hypot(dp, dtl)
             room = self.max_deg_s * max(0.0, dt)
             k = 1.0 if dist <= room else room / dist
+            self.arrived = dist <= room
             self.pan = wrap_deg(self.pan + k * dp)
             self.tilt += k * dtl
         return self.pan, self.tilt

@@ -7,7 +7,8 @@ drives a :class:`~omnidev.autoframe.Follower` (``max_deg_s``) steering a perspec
 ``fov`` degrees. Against the truth (the visible object's centre direction per frame):
 
 - ``lock_on_s``: from the object's appearance to the first frame its centre is within 10 %
-  of the view's width of the view's centre;
+  of the view's width of the view's centre once the view has ended its first move (the
+  follower reached its target at least once: the swing that acquires the object is over);
 - ``framed``: after lock-on, the share of frames where it is (the issue's bound: >= 95 %);
 - ``view_reversals`` / ``object_reversals``: turns of the view's pan and of the object's
   azimuth after lock-on, each counted once it has swung back 1 degree;
@@ -71,6 +72,7 @@ def run_video(
     offsets: list[float] = []
     pans: list[float] = []
     truth_az: list[float] = []
+    settled: list[bool] = []
     targets = 0
     early_targets = 0
     for i in range(video.frames):
@@ -88,6 +90,7 @@ def run_video(
                 early_targets += 1
         if truth is not None:
             offsets.append(view_offset(pan, tilt, fov, *truth))
+            settled.append(follower.arrived or bool(settled and settled[-1]))
             pans.append(pan)
             truth_az.append(truth[0])
     out: dict[str, Any] = {
@@ -97,7 +100,7 @@ def run_video(
     }
     if offsets:
         off = np.asarray(offsets)
-        inside = np.flatnonzero(off <= BOUND)
+        inside = np.flatnonzero((off <= BOUND) & np.asarray(settled, bool))
         if inside.size:
             k = int(inside[0])
             after = off[k:]
