@@ -235,6 +235,113 @@ def _normalised(
     return np.clip(norm, 0, 1).astype(np.float32)
 
 
+def _corner_homography(border: BorderPolygon, screen_size: tuple[int, int]) -> FloatArray:
+    """Screen px -> image px through the border polygon's corner vertices."""
+    sw, sh = screen_size
+    corners_img = border.vertices[[0, 2, 4, 6]].astype(np.float32)
+    corners_scr = np.array(
+        [[-0.5, -0.5], [sw - 0.5, -0.5], [sw - 0.5, sh - 0.5], [-0.5, sh - 0.5]], np.float32
+    )
+    return np.asarray(cv2.getPerspectiveTransform(corners_scr, corners_img), np.float64)
+
+
+def _grow_lattice(
+    rect: FloatArray, step: tuple[float, float], start: int, gate: float = 0.3
+) -> dict[tuple[int, int], int]:
+    """Relative lattice indices (i, j) -> blob index, grown neighbour by neighbour from
+    blob ``start`` over the blobs' positions ``rect`` (the corner-homography-rectified
+    frame, where the lattice is roughly axis-aligned with spacing ``step`` (x, y)).
+
+    Each neighbour of an indexed blob is predicted by extending the nearest known step
+    in that direction (the lattice's local, distorted spacing), or by the nominal step
+    where none is known yet; it takes the nearest blob within ``gate`` of that step's
+    length, if the blob is not indexed yet.
+    """
+    sx, sy = step
+    index: dict[tuple[int, int], int] = {(0, 0): start}
+    used = {start}
+    queue = [(0, 0)]
+    dirs = ((0, 1), (0, -1), (1, 0), (-1, 0))
+    while queue:
+        queue.sort(key=lambda ij: abs(ij[0]) + abs(ij[1]))  # the most central first
+        i, j = queue.pop(0)
+        p = rect[index[(i, j)]]
+        for di, dj in dirs:
+            nxt = (i + di, j + dj)
+            if nxt in index:
+                continue
+            # the step along (di, dj) nearest in the lattice to (i, j)
+            best: FloatArray | None = None
+            best_d = math.inf
+            for (a, b), k in index.items():
+                prev = index.get((a - di, b - dj))
+                if prev is None:
+                    continue
+                dd = abs(a - i) + abs(b - j)
+                if dd < best_d:
+                    best_d, best = dd, rect[k] - rect[prev]
+                    if dd == 0:
+                        break
+            if best is None:
+                best = np.array([dj * sx, di * sy])
+            pred = p + best
+            d = np.hypot(*(rect - pred).T)
+            k = int(np.argmin(d))
+            if d[k] < gate * float(np.hypot(*best)) and k not in used:
+                index[nxt] = k
+                used.add(k)
+                queue.append(nxt)
+    return index
+
+
+def _assign_by_growth(
+    pts: FloatArray,
+    border: BorderPolygon,
+    screen_dots: FloatArray,
+    rows: int,
+    cols: int,
+    screen_size: tuple[int, int],
+) -> NDArray[np.int64] | None:
+    """Blob index for each dot (-1: none) by growing the lattice from the blob nearest
+    the screen centre (:func:`_grow_lattice`) in the frame rectified by the border's
+    corner homography; the grown lattice's offset in the layout is the one that puts
+    its blobs nearest their dots in that frame. None if the growth or the offset is
+    not clear (fewer than 8 blobs grown, or, where the grown lattice does not span every
+    row and column, no offset within 0.6 dot spacings)."""
+    h = _corner_homography(border, screen_size)
+    rect = np.asarray(
+        cv2.perspectiveTransform(pts.reshape(-1, 1, 2).astype(np.float64), np.linalg.inv(h)),
+        np.float64,
+    ).reshape(-1, 2)
+    sx = float(screen_dots[1, 0] - screen_dots[0, 0]) if cols > 1 else float(screen_size[0])
+    sy = float(screen_dots[cols, 1] - screen_dots[0, 1]) if rows > 1 else float(screen_size[1])
+    centre = np.array([screen_size[0] / 2 - 0.5, screen_size[1] / 2 - 0.5])
+    start = int(np.argmin(np.hypot(*(rect - centre).T)))
+    index = _grow_lattice(rect, (sx, sy), start)
+    if len(index) < 8:
+        return None
+    ij = np.array(list(index.keys()))
+    blob = np.array(list(index.values()))
+    lo, hi = ij.min(axis=0), ij.max(axis=0)
+    if hi[0] - lo[0] >= rows or hi[1] - lo[1] >= cols:
+        return None  # more rows or columns than the layout has
+    grid = screen_dots.reshape(rows, cols, 2)
+    best: tuple[float, int, int] = (math.inf, 0, 0)
+    for oi in range(-lo[0], rows - hi[0]):
+        for oj in range(-lo[1], cols - hi[1]):
+            err = np.hypot(*(rect[blob] - grid[ij[:, 0] + oi, ij[:, 1] + oj]).T)
+            med = float(np.median(err))
+            if med < best[0]:
+                best = (med, oi, oj)
+    med, oi, oj = best
+    unique = hi[0] - lo[0] == rows - 1 and hi[1] - lo[1] == cols - 1
+    if not (unique or med < 0.6 * min(sx, sy)):
+        return None
+    assign = np.full(rows * cols, -1, np.int64)
+    assign[(ij[:, 0] + oi) * cols + ij[:, 1] + oj] = blob
+    return assign
+
+
 def _assign_by_model(
     pts: FloatArray,
     border: BorderPolygon,
@@ -254,19 +361,30 @@ def _assign_by_model(
     """
     from omnidev.screencal.transform import RadialMap, invert
 
-    sw, sh = screen_size
-    corners_img = border.vertices[[0, 2, 4, 6]].astype(np.float32)
-    corners_scr = np.array(
-        [[-0.5, -0.5], [sw - 0.5, -0.5], [sw - 0.5, sh - 0.5], [-0.5, sh - 0.5]], np.float32
-    )
-    h = cv2.getPerspectiveTransform(corners_scr, corners_img)
+    h = _corner_homography(border, screen_size)
     pred = cv2.perspectiveTransform(screen_dots.reshape(-1, 1, 2).astype(np.float64), h)
     pred = np.asarray(pred, np.float64).reshape(-1, 2)
-    assign = np.full(len(screen_dots), -1, np.int64)
     sx = (screen_dots[1, 0] - screen_dots[0, 0]) if cols > 1 else 1.0
     sy = (screen_dots[cols, 1] - screen_dots[0, 1]) if rows > 1 else 1.0
     lattice = np.array([screen_dots[0, 0], screen_dots[0, 1], sx, sy])
+    grown = _assign_by_growth(pts, border, screen_dots, rows, cols, screen_size)
     for rnd in range(4):
+        if rnd == 0 and grown is not None:
+            assign = grown
+            found = assign >= 0
+            model = RadialMap.fit(
+                pts[assign[found]],
+                screen_dots[found],
+                image_size,
+                lattice,
+                (rows, cols),
+                found,
+                correct=False,
+            )
+            new = invert(model, screen_dots, pred)
+            if np.isfinite(new).all():
+                pred = new
+                continue
         g = pred.reshape(rows, cols, 2)
         dx = np.full((rows, cols), np.inf)
         dy = np.full((rows, cols), np.inf)
