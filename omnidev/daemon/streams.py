@@ -16,6 +16,8 @@ A ``[[stream]]`` section of the configuration (:func:`parse_streams`)::
     view = "perspective:1280x720,fov=70"   # omnidev.viewspec text
     output = ["v4l2:/dev/video10"]         # one or more omnidev.outputs URIs
     max_deg_s = 90.0                       # PTZ: largest angular rate of a move (0: jump)
+    follow = "pano"                        # optional: auto-framing from that panorama view
+    follow_method = "mog2"                 # mog2 or knn (omnidev.autoframe)
 
 Each running stream (:class:`Stream`) has three threads:
 
@@ -40,6 +42,14 @@ Each running stream (:class:`Stream`) has three threads:
   that take more than half a frame: the non-SVP mirror has no fast map path); the
   pose a move ends at is shown coarse first, then exact. A jump (``max_deg_s`` 0)
   is always built exactly.
+
+A perspective view with ``follow = "NAME"`` is steered by auto-framing
+(:class:`~omnidev.autoframe.AutoFramer`): every frame of the stream's panorama view
+NAME (it needs an elevation band, ``panorama:WxH,elev=LO:HI``) is fed to the framer
+on the remap thread, and its target (pan, tilt) becomes the view's controller target,
+moved at ``max_deg_s`` as a ``ctl view`` move would be. While the framer follows an
+object its target overrides a ``ctl view`` pan/tilt of that view (the fov stays the
+user's); with nothing followed the view stays where it was last sent.
 """
 
 from __future__ import annotations
@@ -57,6 +67,8 @@ from typing import Any, cast
 import numpy as np
 
 from omnidev import registry
+from omnidev.autoframe import METHODS as AUTOFRAME_METHODS
+from omnidev.autoframe import AutoFrameConfig, AutoFramer
 from omnidev.camera import CameraModel, Remapper, build_maps
 from omnidev.errors import ConfigError, FileSourceError, OmnidevError, PluginError
 from omnidev.frame import Frame
@@ -65,7 +77,7 @@ from omnidev.outputs import MAX_FPS, Output, OutputSpec, open_output, split_outp
 from omnidev.outputs.pixels import to_layout
 from omnidev.ptz import Pose, ViewController, coarse_maps
 from omnidev.sources import open_source, resolve_uri
-from omnidev.views import Perspective, View
+from omnidev.views import Panorama, Perspective, View
 from omnidev.viewspec import parse_view
 
 log = logging.getLogger("omnidevd")
@@ -74,7 +86,7 @@ INTERPOLATIONS = ("linear", "nearest", "cubic")
 STREAM_KEYS = {
     "name", "source", "camera", "camera_options", "interpolation", "fps", "queue", "view",
 }  # fmt: skip
-VIEW_KEYS = {"name", "view", "output", "max_deg_s"}
+VIEW_KEYS = {"name", "view", "output", "max_deg_s", "follow", "follow_method"}
 MAX_STREAM_QUEUE = 16
 DEFAULT_FPS = 30.0
 MOVING_MAP_STEPS = (4, 8)
@@ -92,6 +104,8 @@ class ViewConfig:
     view: View
     outputs: tuple[str, ...]
     max_deg_s: float = 90.0
+    follow: str | None = None
+    follow_method: str = "mog2"
 
     @property
     def steerable(self) -> bool:
@@ -233,7 +247,38 @@ def parse_streams(doc: Any, path: Path) -> tuple[StreamConfig, ...]:
                 raise fail(f"{vwhere}.max_deg_s", f"must be 0 (jump) .. 1e6 deg/s, got {rate}")
             if "max_deg_s" in vt and not isinstance(view, Perspective):
                 raise fail(f"{vwhere}.max_deg_s", "only a perspective view is steerable")
-            views.append(ViewConfig(vname, spec, view, tuple(resolved), float(rate)))
+            follow = vt.get("follow")
+            method = vt.get("follow_method", "mog2")
+            if follow is not None:
+                if not isinstance(view, Perspective):
+                    raise fail(f"{vwhere}.follow", "only a perspective view is steered")
+                if not isinstance(follow, str) or not follow.strip():
+                    raise fail(f"{vwhere}.follow", f"must be a view name, got {follow!r}")
+            if not isinstance(method, str) or method not in AUTOFRAME_METHODS:
+                raise fail(
+                    f"{vwhere}.follow_method",
+                    f"must be one of {', '.join(AUTOFRAME_METHODS)}, got {method!r}",
+                )
+            if "follow_method" in vt and follow is None:
+                raise fail(f"{vwhere}.follow_method", "given without follow")
+            views.append(
+                ViewConfig(vname, spec, view, tuple(resolved), float(rate), follow, method)
+            )
+        by_name = {v.name: v for v in views}
+        for v in views:
+            if v.follow is None:
+                continue
+            followed = by_name.get(v.follow)
+            vwhere = f"{where}.view {v.name!r}.follow"
+            if followed is None:
+                known = ", ".join(sorted(by_name))
+                raise fail(vwhere, f"no view {v.follow!r} in this stream (views: {known})")
+            if not isinstance(followed.view, Panorama) or followed.view.elevation_deg is None:
+                raise fail(
+                    vwhere,
+                    f"view {v.follow!r} must be a panorama with an elevation band "
+                    "(panorama:WxH,elev=LO:HI)",
+                )
         streams.append(
             StreamConfig(
                 name, source, camera, tuple(views), camera_options, interpolation, fps, depth
@@ -285,6 +330,8 @@ class LiveView:
                 took = time.perf_counter() - t0
                 if took < 0.8 * best:
                     self.moving_step, best = step, took
+        self.framer: AutoFramer | None = None
+        self.follow_targets = 0
         self.outputs: list[Output] = []
         self.written = 0
         self.history: deque[tuple[int, Pose | None]] = deque(maxlen=4096)
@@ -328,6 +375,10 @@ class LiveView:
             ms = list(self.rebuild_ms)
             out["rebuild_ms_p50"] = round(float(np.percentile(ms, 50)), 3) if ms else None
             out["rebuild_ms_max"] = round(max(ms), 3) if ms else None
+        if self.config.follow is not None:
+            out["follow"] = self.config.follow
+            out["follow_method"] = self.config.follow_method
+            out["follow_targets"] = self.follow_targets
         return out
 
 
@@ -347,6 +398,12 @@ class Stream:
             self.views = [LiveView(v, self.camera, config.interpolation) for v in config.views]
         except ValueError as exc:
             raise ConfigError(f"stream {config.name!r}: {config.camera}: {exc}") from None
+        by_name = {v.config.name: v for v in self.views}
+        for v in self.views:
+            if v.config.follow is not None:
+                pano = by_name[v.config.follow].config.view
+                assert isinstance(pano, Panorama)
+                v.framer = AutoFramer(AutoFrameConfig(pano, method=v.config.follow_method))
         self.state = "starting"
         self.started = time.monotonic()
         self.frames = 0
@@ -619,9 +676,11 @@ class Stream:
         image = frame.image
         if image.ndim == 2:
             image = np.stack([image] * 3, axis=-1)
+        images: dict[str, Any] = {}
         for v in self.views:
             remapper, pose = v.remapper, v.built  # one read: old or new maps, never a mix
             out_image = remapper(cast(Any, image))
+            images[v.config.name] = out_image
             v.history.append((frame.index, pose))
             for out in v.outputs:
                 img = out_image if out.layout == "bgr" else to_layout(out_image, "bgr", out.layout)
@@ -633,6 +692,13 @@ class Stream:
                         log.error("stream %s: %s (going on)", self.config.name, exc)
                     self._output_failing = True
             v.written += 1
+        for v in self.views:
+            if v.framer is not None and v.controller is not None and v.config.follow:
+                target = v.framer.update(images[v.config.follow], frame.timestamp_ns / 1e9)
+                if target is not None:
+                    v.controller.set_target(target.pan_deg, target.tilt_deg, None)
+                    v.follow_targets += 1
+                    self._steer.set()
         done = time.monotonic_ns()
         self.written += 1
         self._latency_ns.append(done - frame.monotonic_ns)
