@@ -6,6 +6,7 @@ import math
 import os
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -102,21 +103,24 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
 
 
 @pytest.hookimpl(optionalhook=True)
-def pytest_testnodedown(node, error) -> None:  # pytest-xdist's hook, on the controller
+def pytest_testnodedown(node: Any, error: object) -> None:  # xdist's hook, on the controller
     out = getattr(node, "workeroutput", None) or {}
     node.config.stash.setdefault(_NOTES, []).extend(out.get("omnidev_notes", []))
     if out.get("omnidev_fuzz"):
         node.config.stash.setdefault(_FUZZ, []).append(out["omnidev_fuzz"])
 
 
-def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
+def pytest_terminal_summary(
+    terminalreporter: pytest.TerminalReporter, exitstatus: int, config: pytest.Config
+) -> None:
     """The fuzz suite's counts by command (tests/fuzz), when it ran; what workers said."""
     notes = config.stash.get(_NOTES, [])
     if notes:
         terminalreporter.section("said on the workers")
         for text in notes:
             terminalreporter.write_line(text.strip("\n"))
-    text = "\n".join(config.stash.get(_FUZZ, [])) or _fuzz_text()
+    fuzz: list[str] = config.stash.get(_FUZZ, [])
+    text = "\n".join(fuzz) or _fuzz_text()
     if text:
         terminalreporter.section("fuzz suite: outcomes by command")
         terminalreporter.write_line(text)

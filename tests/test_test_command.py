@@ -28,13 +28,13 @@ def _make_test_recipe() -> str:
     return m.group(1)
 
 
-def test_make_test_runs_two_workers_by_file():
+def test_make_test_runs_two_workers_by_file() -> None:
     recipe = _make_test_recipe()
     assert "-m pytest -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder" in recipe
     assert re.search(r"^PYTEST_WORKERS \?= 2$", (REPO / "Makefile").read_text(), re.M)
 
 
-def test_the_test_extra_installs_pytest_xdist():
+def test_the_test_extra_installs_pytest_xdist() -> None:
     pyproject = tomllib.loads((REPO / "pyproject.toml").read_text())
     test_extra = pyproject["project"]["optional-dependencies"]["test"]
     assert any(r.startswith("pytest-xdist") for r in test_extra)
@@ -42,7 +42,7 @@ def test_the_test_extra_installs_pytest_xdist():
     assert "-ra" in addopts, "skips must still show (-ra)"
 
 
-def test_the_vm_test_is_collected_first():
+def test_the_vm_test_is_collected_first() -> None:
     res = subprocess.run(
         [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider",
          "tests/test_sdnotify.py", "tests/test_kernel_vm.py", "tests/test_buttons.py"],
@@ -55,7 +55,7 @@ def test_the_vm_test_is_collected_first():
     assert ids[n_vm].startswith("tests/test_sdnotify.py::")  # the rest keep their order
 
 
-def test_a_workers_note_reaches_the_summary(tmp_path):
+def test_a_workers_note_reaches_the_summary(tmp_path: Path) -> None:
     """What the VM fixture says on a worker (its wall time and figures) is printed by the
     controller at the end, once per note; the same in a serial run."""
     pytest.importorskip("xdist", reason="pytest-xdist is in the test extra (make setup)")
