@@ -43,8 +43,13 @@ lint: setup
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy omnidev plugins
 
+# Two workers (pytest-xdist): the VM test (tests/test_kernel_vm.py, one long qemu run,
+# ordered first by tests/conftest.py) on one, the rest beside it on the other. Whole files
+# go to a worker (loadfile), so a module-scoped fixture and the VM boot are made once.
+# PYTEST_WORKERS=0 runs the suite serially.
+PYTEST_WORKERS ?= 2
 test: lint
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # System files for the pointer daemon (udev rules, units, config, user): needs root.
 #   sudo make install INSTALL_ARGS="--bin-dir /opt/omnidev/bin --camera 046d:0825"

@@ -25,6 +25,7 @@ import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -102,18 +103,8 @@ def parse_junit(path: Path) -> dict[str, list[tuple[str, str]]]:
     return results
 
 
-def _say(config: pytest.Config, text: str) -> None:
-    """Print past pytest's output capture, so the VM's figures show in every run."""
-    capman = config.pluginmanager.getplugin("capturemanager")
-    if capman is not None:
-        with capman.global_and_fixture_disabled():
-            print(text, flush=True)
-    else:
-        print(text, flush=True)
-
-
 @pytest.fixture(scope="session")
-def vm_run(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest) -> VMRun:
+def vm_run(tmp_path_factory: pytest.TempPathFactory, say: Callable[[str], None]) -> VMRun:
     vng = _find_vng()
     if vng is None:
         pytest.skip("VM tests: vng (pip install virtme-ng) is not installed")
@@ -134,7 +125,7 @@ def vm_run(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequ
     ]  # fmt: skip
     env = dict(os.environ)
     env["PATH"] = os.pathsep.join([str(Path(vng).parent), env.get("PATH", "")])
-    _say(request.config, f"\nbooting the test VM ({Path(kernel).name}, TCG): {' '.join(cmd)}")
+    say(f"\nbooting the test VM ({Path(kernel).name}, TCG): {' '.join(cmd)}")
     t0 = time.monotonic()
     try:
         proc = subprocess.run(
@@ -168,8 +159,7 @@ def vm_run(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequ
     for records in run.results.values():
         for outcome, _ in records:
             counts[outcome] = counts.get(outcome, 0) + 1
-    _say(
-        request.config,
+    say(
         f"test VM: {wall:.0f} s wall time, results {counts}, files in {outdir}\n"
         f"test VM figures: {json.dumps(run.figures, sort_keys=True)}",
     )
