@@ -396,7 +396,7 @@ def test_camera_unplugged_and_replugged_resumes_without_a_restart(
     assert all(hashlib.sha1(f.tobytes()).digest() in truth for f in frames)
 
 
-def test_a_following_view_is_steered_by_auto_framing(tmp_path):
+def test_a_following_view_is_steered_by_auto_framing(tmp_path, say):
     """A perspective view with ``follow`` keeps a rendered walking person framed
     (omnidev.sim.autoframe_video seed 2, from the auto-framing tuning range: a 480 px
     fisheye at 12.5 fps), the stream paced at the video's rate as a camera would be."""
@@ -447,7 +447,7 @@ def test_a_following_view_is_steered_by_auto_framing(tmp_path):
     settled = offsets[round(1.5 * video.fps) :]
     framed = float(np.mean(np.asarray(settled) <= 0.10))
     targets = st["views"][1]["follow_targets"]
-    print(f"daemon auto-framing: framed {framed:.3f} of {len(settled)} frames, worst offset "
+    say(f"daemon auto-framing: framed {framed:.3f} of {len(settled)} frames, worst offset "
           f"{max(settled):.3f} view widths, {targets} targets")  # fmt: skip
     assert framed >= 0.95, (framed, max(settled))
     # before the person walks in, the view does not move
