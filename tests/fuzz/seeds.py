@@ -204,6 +204,34 @@ retry_max_s = 10.0
 """
     )
     _clip(FIXTURES / "blob" / "blob.avi", root / "blob.avi", 3)
+    # video streams only (issue 16): a fixed view, a steered one and one that follows the
+    # panorama by auto-framing; outputs are raw files in the case's folder
+    (root / "streams.toml").write_text(
+        f"""[[stream]]
+name = "room"
+source = "video:{root / "blob.avi"}"
+camera = "{root / "fish.yml"}"
+interpolation = "linear"
+fps = 15.0
+queue = 2
+
+[[stream.view]]
+name = "pano"
+view = "panorama:180x40,elev=-40:40"
+output = "raw:pano.raw"
+
+[[stream.view]]
+name = "ptz"
+view = "perspective:64x48,fov=60"
+output = ["raw:ptz.raw"]
+max_deg_s = 90.0
+follow = "pano"
+follow_method = "mog2"
+
+[daemon]
+socket = "control.sock"
+"""
+    )
 
 
 def _replay(root: Path) -> None:

@@ -59,6 +59,8 @@ FILE_TARGETS: tuple[FileTarget, ...] = (
     ),
     FileTarget("daemon --check", "daemon config TOML", "daemon.toml",
                ("daemon", "--config", "{f}", "--check")),
+    FileTarget("daemon --check", "daemon streams TOML", "streams.toml",
+               ("daemon", "--config", "{f}", "--check")),
     FileTarget("mouse", "layout JSON", "layout.json",
                ("mouse", "{s}/mouse.avi", "--layout", "{f}", *RECORD)),
     FileTarget("mouse", "layout TOML", "layout.toml",
@@ -556,7 +558,35 @@ def set_key(doc: str, dotted: str, value: str) -> str:
     raise KeyError(dotted)
 
 
+STREAM_KEYS: dict[str, str] = {
+    "fps": "number",
+    "queue": "int",
+    "interpolation": "string",
+    "max_deg_s": "number",
+    "follow": "string",
+    "follow_method": "string",
+}
+"""Keys of the streams seed (each on one line of its own), with their types."""
+
+
+def set_line(doc: str, key: str, value: str) -> str:
+    """The TOML text ``doc`` with the one line ``key = ...`` set to ``value``."""
+    pattern = re.compile(rf"^{re.escape(key)}\s*=.*$", re.M)
+    assert len(pattern.findall(doc)) == 1, key
+    return pattern.sub(lambda _m: f"{key} = {value}", doc)
+
+
 def config_key_cases(seeds: Seeds) -> Iterator[Case]:
+    streams = seeds.text("streams.toml").decode()
+    for key, kind in STREAM_KEYS.items():
+        for value, expect in _WRONG[kind]:
+            yield Case(
+                "daemon --check",
+                f"config stream {key} = {value}",
+                ["daemon", "--config", "in.toml", "--check"],
+                {"in.toml": set_line(streams, key, value).encode()},
+                expect=expect,
+            )
     doc = seeds.text("daemon.toml").decode()
     for dotted, kind in CONFIG_KEYS.items():
         for value, expect in _WRONG[kind]:
