@@ -28,7 +28,7 @@ from omnidev.daemon.main import Daemon
 from omnidev.daemon.main import main as daemon_main
 from omnidev.viewspec import parse_view
 from tests.conftest import psnr
-from tests.test_cli_unwarp_video import fisheye_clip
+from tests.test_cli_unwarp_video import fisheye_clip, read_video
 
 PTZ_W, PTZ_H = 96, 72
 
@@ -104,16 +104,6 @@ def read_raw(path: Path, w: int, h: int) -> np.ndarray:
     return data.reshape(-1, h, w, 3)
 
 
-def read_y4m(path: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, image = cap.read()
-        if not ok:
-            return out
-        out.append(image)
-
-
 def renders(camera, frames, view: str) -> list[np.ndarray]:
     remap = Remapper(omnidev.build_maps(camera, parse_view(view)))
     return [remap(f) for f in frames]
@@ -146,7 +136,7 @@ def test_stream_of_a_file_matches_offline_unwarp(clip, source_frames, tmp_path):
          "--view", "perspective:160x120,fov=90,tilt=45", "-o", f"y4m:{offline}"]
     )  # fmt: skip
     assert code == 0
-    got, want = read_y4m(tmp_path / "flat.y4m"), read_y4m(offline)
+    got, want = read_video(tmp_path / "flat.y4m"), read_video(offline)
     assert len(got) == len(want) == 24
     worst = min(psnr(a, b) for a, b in zip(got, want, strict=True))
     assert worst >= 40.0, worst

@@ -46,6 +46,7 @@ import numpy as np
 
 from omnidev.buttons import ButtonInput, ButtonInputError, DwellClicker, open_buttons
 from omnidev.daemon.config import DaemonConfig
+from omnidev.daemon.queues import put_dropping_oldest
 from omnidev.errors import FileSourceError, OmnidevError
 from omnidev.filters import OneEuroFilter
 from omnidev.frame import Frame, PointerSample
@@ -250,16 +251,8 @@ class Pipeline:
                 except queue.Full:
                     continue
             return False
-        while True:
-            try:
-                self._queue.put_nowait(frame)
-                return True
-            except queue.Full:
-                try:
-                    self._queue.get_nowait()
-                    self._stats.dropped_frames += 1
-                except queue.Empty:
-                    pass
+        self._stats.dropped_frames += put_dropping_oldest(self._queue, frame)
+        return True
 
     def _capture_loop(self) -> None:
         delay = self.config.retry_initial_s

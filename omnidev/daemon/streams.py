@@ -70,6 +70,7 @@ from omnidev import registry
 from omnidev.autoframe import METHODS as AUTOFRAME_METHODS
 from omnidev.autoframe import AutoFrameConfig, AutoFramer
 from omnidev.camera import CameraModel, Remapper, build_maps
+from omnidev.daemon.queues import put_dropping_oldest
 from omnidev.errors import ConfigError, FileSourceError, OmnidevError, PluginError
 from omnidev.frame import Frame
 from omnidev.outputs import GROUP as OUTPUTS
@@ -527,16 +528,8 @@ class Stream:
                     if not self._threads[1].is_alive():
                         return False
             return False
-        while True:
-            try:
-                self._queue.put_nowait(frame)
-                return True
-            except queue.Full:
-                try:
-                    self._queue.get_nowait()
-                    self.dropped += 1
-                except queue.Empty:
-                    pass
+        self.dropped += put_dropping_oldest(self._queue, frame)
+        return True
 
     def _capture_loop(self) -> None:
         delay = self.retry_initial_s
