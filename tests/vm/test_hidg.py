@@ -474,7 +474,13 @@ def test_relative_mode_end_to_end() -> None:
     with pytest.raises(SinkError, match="set up in relative mode"):
         open_hidg({"device": node}, SINGLE)
 
-    with HostReader() as host, HidgSink(SINGLE, device=node, mode="relative") as sink:
+    # A burst of 24 reports, each waiting for the host's next poll: under TCG on a loaded
+    # machine a poll can take longer than the default 20 ms, and a dropped report's motion
+    # goes out only with the next move (tested below), so this test gives the host 2 s.
+    with (
+        HostReader() as host,
+        HidgSink(SINGLE, device=node, mode="relative", timeout_ms=2000) as sink,
+    ):
         host.drain()
         # First move: the homing push by minus the layout size (1920, 1080), then
         # the target pixel (0.5 * 1919 = 959.5 -> 960, 0.5 * 1079 = 539.5 -> 540).
@@ -494,6 +500,7 @@ def test_relative_mode_end_to_end() -> None:
         # Far jump, clamped: to (1919, 0)
         sink.move(3.0, -1.0)
         assert read_deltas(host)[:2] == (1919 - 480, 0 - 809)
+        assert sink.stats()["dropped"] == 0, sink.stats()
         sink.close()
         dx, dy, reports = read_deltas(host)
         assert (dx, dy) == (0, 0) and reports[-1][0] == 0
