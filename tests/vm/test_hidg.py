@@ -153,10 +153,10 @@ class HostReader:
         data: list[int] = self.dev.read(64, timeout_ms)
         return data
 
-    def drain(self) -> list[list[int]]:
+    def drain(self, quiet_ms: int = 300) -> list[list[int]]:
         """Every report already on its way (e.g. one the kernel held while nobody read)."""
         out = []
-        while data := self.read(300):
+        while data := self.read(quiet_ms):
             out.append(data)
         return out
 
@@ -456,7 +456,7 @@ def test_sink_refuses_the_other_mode(absolute_node: str) -> None:
 
 
 def read_deltas(host: HostReader) -> tuple[int, int, list[list[int]]]:
-    reports = host.drain()
+    reports = host.drain(quiet_ms=1000)  # a burst under TCG can pause longer than 300 ms
     vals = [hr.decode_report(hr.RELATIVE_DESCRIPTOR, bytes(r)) for r in reports]
     return sum(v[(1, 0x30)] for v in vals), sum(v[(1, 0x31)] for v in vals), reports
 
