@@ -90,7 +90,10 @@ def read_string(fs: cv2.FileStorage, path: Path, key: str) -> str:
     node = fs.getNode(key)
     if node.empty() or not node.isString():
         raise CalibrationError(f"{path}: missing text key {key!r}")
-    return str(node.string())
+    try:
+        return str(node.string())
+    except UnicodeDecodeError:  # e.g. a YAML escape "\xde" that makes no UTF-8 character
+        raise CalibrationError(f"{path}: text key {key!r} is not UTF-8 text") from None
 
 
 def read_real(fs: cv2.FileStorage, path: Path, key: str) -> float:

@@ -42,3 +42,9 @@ class ConfigError(OmnidevError):
 
 class TrackerError(OmnidevError):
     """A tracker that cannot be created or cannot process a frame."""
+
+
+def naming(path: object, exc: BaseException) -> str:
+    """``exc``'s message led by ``path``, unless the message names it already."""
+    said = str(exc)
+    return said if str(path) in said else f"{path}: {said}"

@@ -218,3 +218,20 @@ def test_unwarp_bad_view_and_output_pairs(tmp_path):
     )
     assert res.returncode == 2 and "is 100x100; the calibration is for 640x640" in res.stderr
     assert not (tmp_path / "o.png").exists()
+
+
+def test_calibration_text_value_that_is_not_utf8(tmp_path):
+    # found by the full fuzz sweep: OpenCV reads the byte into the 'kind' string, whose
+    # decoding then raised UnicodeDecodeError (a traceback) instead of a clean error
+    import cv2
+
+    img = tmp_path / "omni.png"
+    cv2.imwrite(str(img), np.zeros((64, 64, 3), np.uint8))
+    bad = tmp_path / "cam.yml"
+    bad.write_bytes(b"%YAML 1.2\n---\nkind: fisheye\xde\nformat_version: 1\n")
+    res = run_cli("unwarp", str(img), "--camera", str(bad), "--view", "panorama:64x16",
+                  "-o", str(tmp_path / "o.png"))  # fmt: skip
+    assert res.returncode == 2, res.stderr
+    assert "Traceback" not in res.stderr
+    assert f"{bad}: text key 'kind' is not UTF-8 text" in res.stderr
+    assert res.stderr.count(str(bad)) == 1  # named once, not once per layer

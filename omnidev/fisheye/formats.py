@@ -745,6 +745,8 @@ def read_storage(path: Path) -> dict[str, Any]:
         except cv2.error as exc:
             msg = str(exc).split("error:", 1)[-1].strip().splitlines()[0]
             raise CalibrationError(f"{path}: not a readable OpenCV FileStorage ({msg})") from None
+        except UnicodeDecodeError:  # a text node whose bytes (e.g. a "\xde" escape) are not UTF-8
+            raise CalibrationError(f"{path}: a text value is not UTF-8 text") from None
 
 
 def detect_format(path: Path) -> Format:

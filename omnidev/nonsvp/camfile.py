@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from omnidev.calibfile import check_header, open_storage, read_mat, read_real, write_storage
-from omnidev.errors import CalibrationError
+from omnidev.errors import CalibrationError, naming
 from omnidev.nonsvp.forward import project
 from omnidev.nonsvp.model import Lens, Mirror, NonSvpCamera, Pose
 
@@ -228,7 +228,7 @@ def read_camera_and_housing(path: Path) -> tuple[NonSvpCamera, float | None]:
                 )  # fmt: skip
             return NonSvpCamera(mirror, lens, pose), housing
         except CalibrationError as exc:
-            raise CalibrationError(f"{path}: {exc}") from None
+            raise CalibrationError(naming(path, exc)) from None
         except ValueError as exc:
             raise CalibrationError(f"{path}: {exc}") from None
 

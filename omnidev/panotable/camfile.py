@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from omnidev.budget import check_pixels
 from omnidev.calibfile import open_storage, read_mat, read_real, read_string, write_storage
 from omnidev.camera import INVALID, BoolArray, FloatArray, Maps
-from omnidev.errors import CalibrationError
+from omnidev.errors import CalibrationError, naming
 from omnidev.panotable.general import table_angles
 from omnidev.panotable.maps import view_maps as block_view_maps
 from omnidev.panotable.table import (
@@ -188,7 +188,7 @@ def load_table(path: Path) -> PanoTable:
                 **extra,  # type: ignore[arg-type]
             )
         except CalibrationError as exc:
-            raise CalibrationError(f"{path}: {exc}") from None
+            raise CalibrationError(naming(path, exc)) from None
     if table is not None:
         return model.with_table(table)
     return model  # the entries are filled from the mapping when a lookup needs them

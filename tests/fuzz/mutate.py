@@ -67,6 +67,10 @@ def _insert(seed: bytes, at: float, junk: bytes) -> bytes:
     return seed[:i] + junk + seed[i:]
 
 
+TEXT_VALUE = re.compile(rb"^[A-Za-z_]\w*[ \t]*[:=][ \t]*\"?[A-Za-z][\w-]*", re.M)
+"""The first ``key: word`` (YAML) or ``key = "word"`` (TOML) line's word."""
+
+
 def number_positions(seed: bytes, count: int) -> list[re.Match[bytes]]:
     """``count`` number tokens spread evenly over the file."""
     found = list(NUMBER.finditer(seed))
@@ -107,6 +111,10 @@ def variants(
         return
     yield Variant("non-UTF-8 byte", _insert(seed, 0.4, b"\xff\xfe"), "refuse")
     yield Variant("Latin-1 text", _insert(seed, 0.0, b"# caf\xe9\n"), "refuse")
+    word = TEXT_VALUE.search(seed)
+    if word is not None:  # inside a value the reader decodes (found by the full fuzz sweep)
+        cut = word.end()
+        yield Variant("non-UTF-8 byte in a text value", seed[:cut] + b"\xde" + seed[cut:], "refuse")
     yield Variant("NUL byte", _insert(seed, 0.5, b"\x00"), "refuse")
     for m in number_positions(seed, numbers):
         where = f"number {m.group().decode()!r} at byte {m.start()}"

@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 
 from omnidev import Frame, PointerSample
-from omnidev.errors import OmnidevError, TrackerError
+from omnidev.errors import OmnidevError, TrackerError, naming
 from omnidev.laser.colour_spot import ColourSpotDetector
 from omnidev.laser.spot import COLOURS, SpotDetector
 from omnidev.screencal.calibration import ScreenCalibration, load_screen_calibration
@@ -144,7 +144,7 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> LaserP
     try:
         cal = load_screen_calibration(calibration)
     except OmnidevError as exc:
-        raise TrackerError(f"laser-pointer: {calibration}: {exc}") from None
+        raise TrackerError(f"laser-pointer: {naming(calibration, exc)}") from None
     # the screen region grown by MASK_GROW_PX: a spot at the very edge keeps its core
     mask = cv2.dilate(
         np.asarray(cal.screen_mask(), np.uint8), np.ones((2 * MASK_GROW_PX + 1,) * 2, np.uint8)
