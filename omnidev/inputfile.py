@@ -80,8 +80,13 @@ def read_bytes(
         if stat.S_ISDIR(st.st_mode):
             raise error(f"{path}: is a folder, not a {what}")
         if not stat.S_ISREG(st.st_mode):
-            kind = "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not"
-            raise error(f"{path}: is {kind} a regular file; give the {what} as a file")
+            if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode):
+                kind = "a device"
+            elif stat.S_ISFIFO(st.st_mode):
+                kind = "a FIFO"
+            else:
+                kind = "a special file"
+            raise error(f"{path}: is {kind}, not a regular file; give the {what} as a file")
         if st.st_size > limit:
             raise error(
                 f"{path}: {_describe_size(st.st_size)}, larger than any {what} "
