@@ -228,6 +228,25 @@ def test_sigkill_leaves_buttons_stuck_in_the_server(single):
     assert buttons_down(single) == set()
 
 
+def test_buttons_a_killed_sink_left_down_are_released_when_the_next_opens(single):
+    proc = _holder(single)
+    proc.kill()
+    proc.wait(10)
+    try:
+        assert buttons_down(single) == {"left", "right"}  # as the control test above
+        sink = XtestSink(SINGLE, display=single)
+        try:
+            assert buttons_down(single) == set()
+            assert sink.stats()["released_at_start"] == ["left", "right"]
+        finally:
+            sink.close()
+        sink = XtestSink(SINGLE, display=single)  # nothing down: nothing released
+        sink.close()
+        assert sink.stats()["released_at_start"] == []
+    finally:
+        xdotool_release_all(single)
+
+
 def test_cannot_open_display_names_it():
     unused = next(n for n in range(4242, 4342) if not Path(f"/tmp/.X11-unix/X{n}").exists())
     with pytest.raises(SinkError) as info:

@@ -150,6 +150,27 @@ class XtestSink(PointerSink):
         self._motion, self._press, self._release = x.MotionNotify, x.ButtonPress, x.ButtonRelease
         self._lost = (xlib.error.ConnectionClosedError, xlib.error.XError, OSError)
         self._unsynced = False  # requests sent since the last XSync
+        try:
+            self.released_at_start = self._release_stale(x)
+        except BaseException:
+            self.closed = True
+            self._close()
+            raise
+
+    def _release_stale(self, x: Any) -> list[str]:
+        """Release omnidev's buttons that the server holds down when the sink opens: a
+        client killed with SIGKILL (an earlier omnidev among them) leaves its XTest
+        presses down for good. Returns the buttons released."""
+        masks = {"left": x.Button1Mask, "middle": x.Button2Mask, "right": x.Button3Mask}
+        try:
+            mask = int(self.root.query_pointer().mask)
+        except self._lost as exc:
+            raise SinkError(f"xtest sink: X display {self.display_name!r} lost: {exc}") from None
+        stuck = [b for b, m in masks.items() if mask & m]
+        for b in stuck:
+            self._button(b, False)
+        self._flush()
+        return stuck
 
     def _call(self, what: str, *args: Any, **kwargs: Any) -> None:
         try:
@@ -181,7 +202,12 @@ class XtestSink(PointerSink):
 
     def stats(self) -> dict[str, Any]:
         """Counters, plus the display and its root window size (pixels)."""
-        return {**super().stats(), "display": self.display_name, "root": list(self.root_size)}
+        return {
+            **super().stats(),
+            "display": self.display_name,
+            "root": list(self.root_size),
+            "released_at_start": list(self.released_at_start),
+        }
 
 
 def open_xtest(options: Mapping[str, Any], mapping: ScreenMapping) -> XtestSink:
