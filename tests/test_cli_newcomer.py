@@ -41,6 +41,27 @@ def test_unwarp_help_lists_every_view_kind_and_key(capsys):
     assert "degrees" in text and "calibration's unit" in text
 
 
+def test_bench_help_lists_every_benchmark_with_what_it_measures(capsys):
+    from omnidev.cli.bench_cmd import available, bench_dir
+
+    with pytest.raises(SystemExit):
+        main(["bench", "--help"])
+    text = capsys.readouterr().out
+    names = sorted(p.stem for p in bench_dir().glob("*.py") if not p.stem.startswith("_"))
+    assert names == available() and len(names) >= 9
+    for name in names:
+        line = next(ln for ln in text.splitlines() if ln.strip().startswith(name + " "))
+        assert len(line.split()) > 4, line  # the name, then its docstring's first sentence
+    assert "Laser pointer speed at 1280x720" in text
+
+
+def test_max_memory_help_says_the_real_default(capsys):
+    with pytest.raises(SystemExit):
+        main(["unwarp", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "half the physical memory" in text and "default 1G" not in text
+
+
 @pytest.mark.parametrize("what", ["omni", "blob", "mouse", "screen", "nonsvp", "chessboard"])
 def test_sim_options_have_help_and_defaults(capsys, what):
     with pytest.raises(SystemExit):

@@ -11,6 +11,7 @@ import argparse
 import importlib.util
 import json
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -32,9 +33,38 @@ def available() -> list[str]:
     )
 
 
+_DOC = re.compile(r'^"""(.*?)(?:\n\n|""")', re.S)
+
+
+def summary(name: str) -> str:
+    """The first paragraph of ``bench/NAME.py``'s docstring, on one line (the file is
+    read, not imported: every ``omnidev`` start builds this help)."""
+    try:
+        with open(bench_dir() / f"{name}.py", encoding="utf-8") as f:
+            head = f.read(4000)
+    except (OSError, UnicodeDecodeError):
+        return ""
+    m = _DOC.match(head)
+    return " ".join(m.group(1).replace("``", "").split()) if m else ""
+
+
+def _listing() -> str:
+    names = available()
+    if not names:
+        return f"no benchmarks found in {bench_dir()}"
+    width = max(len(n) for n in names)
+    lines = [f"  {n:<{width}}  {summary(n)}" for n in names]
+    return "benchmarks (bench/NAME.py):\n" + "\n".join(lines)
+
+
 def register(sub: Any) -> None:
-    p = sub.add_parser("bench", help="run a benchmark (ratios against its anchor)")
-    p.add_argument("name", help="benchmark name (a file in bench/)")
+    p = sub.add_parser(
+        "bench",
+        help="run a benchmark (ratios against its anchor)",
+        epilog=_listing(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("name", help="benchmark name: one of those listed below")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
     p.set_defaults(func=run)

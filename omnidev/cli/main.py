@@ -5,7 +5,8 @@ Each subcommand module has ``register(subparsers)`` (which sets ``func``) and
 line and exits with status 2; Ctrl-C exits with 130 and SIGTERM with 143, both
 after the command's temporaries are removed and its pointer buttons released.
 
-Every command takes ``--max-memory SIZE`` (default 1G, see :mod:`omnidev.budget`).
+Every command takes ``--max-memory SIZE`` (default: half the physical memory, see
+:mod:`omnidev.budget`).
 A value that starts with a minus sign and a digit is a value, never an option:
 ``--elevation-range -50,10`` works as ``--elevation-range=-50,10`` does.
 """
@@ -102,9 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
             leaf.add_argument(
                 "--max-memory",
                 metavar="SIZE",
-                help="largest memory this command may use, e.g. 512M or 4G (default 1G, "
-                "or $OMNIDEV_MAX_MEMORY; 0: no limit); larger views, tables and images "
-                "are refused with their estimate",
+                help="largest memory this command may use, e.g. 512M or 4G (default: "
+                "$OMNIDEV_MAX_MEMORY, else half the physical memory; 0: no limit); larger "
+                "views, tables and images are refused with their estimate",
             )
     return parser
 
