@@ -131,6 +131,33 @@ def test_refusal_names_the_outlier_line():
         )
 
 
+def test_a_wild_landmark_does_not_overflow_the_fit():
+    # found by the fuzz sweep: u = 1.7e7 px (a lost decimal point) drove the fitted log
+    # aspect so far that exp() overflowed (a traceback); the fit ends, the residual says why
+    uv, xyz = landmarks(TILTED, 48, seed=5, noise=0.2)
+    uv[0, 0] = 1.7e7
+    g = fit_general(uv, xyz, TILTED.center)
+    assert g.heldout_rms_px > 1e3
+
+
+def test_cli_refuses_a_landmark_outside_the_image(tmp_path, capsys):
+    from omnidev.cli.main import main
+
+    uv, xyz = landmarks(TILTED, 40, seed=5, noise=0.2)
+    uv[3, 0] = 17053611.0
+    csv = tmp_path / "lm.csv"
+    rows = [",".join(f"{c:.6f}" for c in (*p, *q)) for p, q in zip(uv, xyz, strict=True)]
+    csv.write_text("u,v,X,Y,Z\n" + "\n".join(rows) + "\n")
+    w, h = TILTED.image_size
+    rc = main(["calibrate", "pano-table", str(csv), "--model", "general", "--mirror-center",
+               "0,0,0", "--image-center", "480,480", "--image-size", f"{w}x{h}",
+               "-o", str(tmp_path / "c.yml")])  # fmt: skip
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert f"{csv} line 5: landmark (u, v) = (1.70536e+07, " in err
+    assert f"lies outside the {w}x{h} image" in err
+
+
 def test_refusal_names_a_wrong_mirror_center():
     uv, xyz = landmarks(TILTED, 80, seed=3, noise=0.2, dist=(0.4, 4.0))
     with pytest.raises(CalibrationError, match=r"moving the mirror center by .*--mirror-center"):

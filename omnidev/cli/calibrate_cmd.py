@@ -18,7 +18,7 @@ from omnidev.imagefile import read_image
 from omnidev.inputfile import read_json
 from omnidev.panotable.camfile import save_table
 from omnidev.panotable.center import detect_image_center
-from omnidev.panotable.landmarks import read_landmarks_csv
+from omnidev.panotable.landmarks import check_inside_image, read_landmarks_csv
 from omnidev.panotable.table import (
     Calibration,
     GeneralCalibration,
@@ -129,6 +129,7 @@ def run(args: argparse.Namespace) -> int:
         size = parse_size(args.image_size, "--image-size")
     else:
         raise CalibrationError("give --image or --image-size")
+    check_inside_image(lm, size, args.landmarks)
     if args.cutoff_radius is not None and not 0 <= args.cutoff_radius < math.hypot(*size):
         raise CalibrationError(
             f"--cutoff-radius {args.cutoff_radius:g}: give pixels >= 0 within the "

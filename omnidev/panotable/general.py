@@ -276,6 +276,7 @@ CANDIDATES: tuple[Terms, ...] = (
 
 KEYSTONE_SCALE = 1e-6  # parameter units of the keystone: 1e-6 / px
 RIDGE_PX = 30.0  # a harmonic coefficient of this size costs as much as 1 px of one residual
+MAX_LOG_ASPECT = 5.0  # |log aspect| the fit may reach (aspect 0.0067 .. 148; real ones are ~1)
 
 
 def _poly_in_t_to_rho(c: FloatArray, mid: float, half: float) -> FloatArray:
@@ -365,7 +366,9 @@ class _Problem:
             center, i = (float(q[0]), float(q[1])), 2
         aspect = 1.0
         if t.aspect:
-            aspect, i = float(math.exp(q[i])), i + 1
+            # clipped: an optimizer step on wild landmarks must not overflow exp()
+            log_aspect = min(max(float(q[i]), -MAX_LOG_ASPECT), MAX_LOG_ASPECT)
+            aspect, i = math.exp(log_aspect), i + 1
         tilt = (0.0, 0.0)
         if t.tilt:
             tilt, i = (float(q[i]), float(q[i + 1])), i + 2

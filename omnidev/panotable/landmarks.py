@@ -97,3 +97,18 @@ def read_landmarks_csv(path: Path) -> Landmarks:
     arr = np.array(values, np.float64)
     g = np.array(groups, np.intp) if gi is not None else None
     return Landmarks(arr[:, :2], arr[:, 2:], tuple(rows), g)
+
+
+def check_inside_image(lm: Landmarks, size: tuple[int, int], path: Path | str) -> None:
+    """Refuse a landmark whose image point (u, v) lies outside a ``size`` (W, H) image
+    (pixel centres at whole numbers: the image spans -0.5 .. W - 0.5), naming its line."""
+    w, h = size
+    u, v = lm.uv[:, 0], lm.uv[:, 1]
+    out = np.flatnonzero((u < -0.5) | (u > w - 0.5) | (v < -0.5) | (v > h - 0.5))
+    if out.size:
+        k = int(out[0])
+        more = f" (and {out.size - 1} more)" if out.size > 1 else ""
+        raise CalibrationError(
+            f"{path} line {lm.rows[k]}: landmark (u, v) = ({u[k]:g}, {v[k]:g}) lies outside "
+            f"the {w}x{h} image{more}"
+        )
