@@ -20,6 +20,8 @@
 #   udev/*.rules                  -> /etc/udev/rules.d/
 #   udev/modules-load.d/*.conf    -> /etc/modules-load.d/
 #   udev/*.service                -> /etc/systemd/system/   (omnidevd: ExecStart rewritten)
+#   omnidevd --device-allow       -> /etc/systemd/system/omnidevd.service.d/10-devices.conf
+#                                    (DeviceAllow= for the configuration's [buttons] input)
 #   udev/*.sh                     -> /usr/local/lib/omnidev/
 #   udev/omnidev.toml.example     -> /etc/omnidev/omnidev.toml (only if absent) and
 #                                    /usr/local/share/doc/omnidev/
@@ -148,6 +150,11 @@ if [ "$uninstall" = 1 ]; then
         rm -f "$DESTDIR$RULES_DIR/$CAMERA_RULE"
         say "removed $RULES_DIR/$CAMERA_RULE"
     fi
+    if [ -e "$DESTDIR$UNIT_DIR/omnidevd.service.d/10-devices.conf" ]; then
+        rm -f "$DESTDIR$UNIT_DIR/omnidevd.service.d/10-devices.conf"
+        rmdir "$DESTDIR$UNIT_DIR/omnidevd.service.d" 2>/dev/null || true
+        say "removed $UNIT_DIR/omnidevd.service.d/10-devices.conf"
+    fi
     rmdir "$DESTDIR$LIB_DIR" "$DESTDIR$DOC_DIR" "$DESTDIR$SHARE_DIR" 2>/dev/null || true
     reload_system
     say "kept $CONF_DIR/omnidev.toml and the user $USER_NAME (remove them with: rm -r $CONF_DIR; userdel $USER_NAME)"
@@ -232,6 +239,22 @@ else
     install -m 0644 "$SRC/udev/omnidev.toml.example" "$DESTDIR$CONF_DIR/omnidev.toml"
     say "installed $CONF_DIR/omnidev.toml: edit it for your camera, tracker, sink and screen"
 fi
+
+# -- the devices the configuration's button input needs (omnidev/daemon/unit.py) --
+dropin_dir=$UNIT_DIR/omnidevd.service.d
+tmp=$(mktemp)
+if "$bin_dir/omnidevd" --config "$DESTDIR$CONF_DIR/omnidev.toml" --device-allow >"$tmp" 2>&1 &&
+    grep -q '^\[Service\]' "$tmp"; then
+    install -d -m 0755 "$DESTDIR$dropin_dir"
+    install -m 0644 "$tmp" "$DESTDIR$dropin_dir/10-devices.conf"
+    allow=$(sed -n 's/^DeviceAllow=//p' "$tmp" | tr '\n' ',' | sed 's/,$//; s/,/, /g')
+    say "installed $dropin_dir/10-devices.conf (DeviceAllow: ${allow:-nothing beyond the unit's})"
+else
+    warn "did not write $dropin_dir/10-devices.conf: '$bin_dir/omnidevd --device-allow' failed:" \
+        "$(tail -n 1 "$tmp"). A [buttons] input then cannot open its device under the unit;" \
+        "fix the configuration and run this again"
+fi
+rm -f "$tmp"
 
 # -- the system user -------------------------------------------------------------
 prefix_opt=""

@@ -549,3 +549,62 @@ def test_fixture_trial_runs_the_daemon_as_systemd_would():
             notify.close()
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+# -- DeviceAllow for the configuration's button input (omnidev/daemon/unit.py) ----
+
+EXAMPLE = REPO / "udev" / "omnidev.toml.example"
+
+
+def _config_with_buttons(path: Path, spec: str) -> Path:
+    text = EXAMPLE.read_text()
+    assert '\ninput = ""\n' in text
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text.replace('\ninput = ""\n', f"\ninput = {spec!r}\n"))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("spec", "allow"),
+    [
+        ("", []),
+        ("evdev:/dev/input/event3?KEY_SPACE=left", ["char-input r"]),
+        ("evdev:name=My Remote", ["char-input r"]),
+        ("hid:046d:c538?key.0x4e=left&backend=hidraw", ["char-hidraw rw"]),
+        ("hid:046d:c538?key.0x4e=left&backend=libusb", ["char-usb_device rw"]),
+        ("hid:046d:c538?key.0x4e=left", ["char-hidraw rw", "char-usb_device rw"]),
+    ],
+)
+def test_device_allow_follows_the_button_input(tmp_path, spec, allow):
+    from omnidev.daemon.config import load_config
+    from omnidev.daemon.unit import device_allow, dropin_text
+
+    config = load_config(_config_with_buttons(tmp_path / "omnidev.toml", spec))
+    assert device_allow(config) == allow
+    text = dropin_text(config)
+    assert "[Service]" in text.splitlines()
+    assert [ln[len("DeviceAllow=") :] for ln in text.splitlines() if "=" in ln and
+            not ln.startswith("#")] == allow  # fmt: skip
+
+
+def test_install_writes_the_dropin_the_configuration_needs(tmp_path):
+    # the real omnidevd of this environment (not the fake one): it reads the config
+    bindir = Path(sys.executable).parent
+    if not (bindir / "omnidevd").is_file():
+        pytest.skip(f"no omnidevd beside {sys.executable} (not installed in this environment)")
+    conf = _config_with_buttons(tmp_path / "etc/omnidev/omnidev.toml", "evdev:name=My Remote")
+    proc = install(tmp_path, "--bin-dir", str(bindir))
+    dropin = tmp_path / "etc/systemd/system/omnidevd.service.d/10-devices.conf"
+    assert "DeviceAllow: char-input r" in proc.stdout, proc.stdout + proc.stderr
+    lines = dropin.read_text().splitlines()
+    assert "[Service]" in lines and "DeviceAllow=char-input r" in lines
+    assert oct(dropin.stat().st_mode & 0o777) == oct(0o644)
+    conf.write_text(conf.read_text().replace("evdev:name=My Remote", ""))  # buttons removed
+    install(tmp_path, "--bin-dir", str(bindir))
+    assert not any(ln.startswith("DeviceAllow") for ln in dropin.read_text().splitlines())
+    conf.write_text(conf.read_text() + "\n[bogus]\n")  # a config the daemon refuses
+    proc = install(tmp_path, "--bin-dir", str(bindir))
+    assert "did not write /etc/systemd/system/omnidevd.service.d/10-devices.conf" in proc.stderr
+    assert "bogus" in proc.stderr
+    install(tmp_path, "--uninstall")
+    assert not dropin.parent.exists()

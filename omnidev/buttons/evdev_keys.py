@@ -26,7 +26,9 @@ from omnidev.evdev_find import find_event_nodes, list_devices
 PERMISSION_FIX = (
     "add the user to group input (sudo usermod -aG input USER, then log in again; "
     "Debian's udev gives /dev/input/event* to group input, mode 0660) or run omnidevd "
-    "with the groups and udev rule of udev/60-omnidev.rules and docs/daemon.md"
+    "with the groups and udev rule of udev/60-omnidev.rules and docs/daemon.md; under "
+    "omnidevd.service the unit must allow char-input (sudo make install writes "
+    "omnidevd.service.d/10-devices.conf from the configuration)"
 )
 
 

@@ -35,7 +35,9 @@ MAX_REPORT = 64  # bytes asked for per read: a full-speed interrupt packet
 PERMISSION_FIX = (
     "give the user read/write access to the device's /dev/hidrawN with a udev rule "
     '(see docs/buttons.md: SUBSYSTEM=="hidraw", ATTRS{idVendor}==..., GROUP="input", '
-    'MODE="0660") and membership of group input'
+    'MODE="0660") and membership of group input; under omnidevd.service the unit must '
+    "allow char-hidraw (sudo make install writes omnidevd.service.d/10-devices.conf from "
+    "the configuration)"
 )
 
 

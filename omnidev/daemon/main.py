@@ -53,6 +53,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="check the configuration as the start does (plugins, options, files, devices: "
         "opened and closed again, the pointer never moves), then exit: 0 if it would start",
     )
+    p.add_argument(
+        "--device-allow",
+        action="store_true",
+        help="print the systemd drop-in (DeviceAllow=) that omnidevd.service needs for the "
+        "configuration's [buttons] input, then exit (sudo make install writes it)",
+    )
 
 
 class Daemon:
@@ -348,6 +354,11 @@ def run_daemon(args: argparse.Namespace) -> int:
         else "%(asctime)s omnidevd %(levelname)s %(message)s",
         stream=sys.stderr,
     )
+    if args.device_allow:
+        from omnidev.daemon.unit import dropin_text
+
+        print(dropin_text(load_config(args.config)), end="")
+        return 0
     if args.check:
         from omnidev.daemon.check import check_config
 
