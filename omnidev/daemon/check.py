@@ -141,7 +141,13 @@ def _check_pointer(config: DaemonConfig) -> list[str]:
 
         with _key(config, "buttons.input"):
             open_buttons(config.buttons.input).close()
-        notes.append(f"buttons {config.buttons.input}: opened and closed")
+        from omnidev.daemon.unit import device_allow
+
+        allow = ", ".join(device_allow(config))
+        notes.append(
+            f"buttons {config.buttons.input}: opened and closed (omnidevd.service needs "
+            f"DeviceAllow {allow}: omnidev daemon --device-allow)"
+        )
 
     with _key(config, "source.uri"):
         notes.append(_check_source(config.source))
