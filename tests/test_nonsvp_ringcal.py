@@ -144,6 +144,33 @@ def test_too_few_ring_points_is_one_line_error():
         rc.calibrate_tsai(np.zeros((4, 2)), PTS[:4], LENS)
 
 
+def test_degenerate_points_are_refused_not_fitted_exactly():
+    # issue 14: 16 copies of one point gave a pose with RMS 0.000 px, and it was written
+    uv = rc.project_plane_points(LENS, DISS_POSE, PTS)
+    with pytest.raises(CalibrationError, match="1 distinct image points .px. among 16"):
+        rc.calibrate_tsai(np.repeat(uv[:1], 16, 0), np.repeat(PTS[:1], 16, 0), LENS)
+    with pytest.raises(CalibrationError, match="4 distinct plane points .mm. among 16"):
+        rc.calibrate_tsai(uv, np.tile(PTS[:4], (4, 1)), LENS)
+    line = np.c_[np.linspace(0, 40, 16), np.linspace(0, 20, 16), np.zeros(16)]
+    with pytest.raises(CalibrationError, match="plane points .mm. all lie on one line"):
+        rc.calibrate_tsai(uv, line, LENS)
+    assert rc.calibrate_tsai(uv, PTS, LENS).rms_px < 1e-6  # the ring itself passes
+
+
+def test_cli_refuses_repeated_points_naming_the_file(tmp_path, capsys):
+    from omnidev.cli.main import main
+
+    uv = rc.project_plane_points(LENS, DISS_POSE, PTS)
+    pts = tmp_path / "same.csv"
+    pts.write_text("u,v,X,Y\n" + f"{uv[0, 0]},{uv[0, 1]},{PTS[0, 0]},{PTS[0, 1]}\n" * 16)
+    out = tmp_path / "cam.yml"
+    rc_ = main(["calibrate", "nonsvp-hyper", "--points", str(pts), "--mirror",
+                "28.3646,32.0661,29", "--lens", "2.9,3.2,2.4", "--size", "640x480",
+                "-o", str(out)])  # fmt: skip
+    assert rc_ == 2 and not out.exists()
+    assert f"{pts}: ring calibration: 1 distinct image points" in capsys.readouterr().err
+
+
 def test_points_csv_errors_name_file_and_row():
     uv = rc.project_plane_points(LENS, DISS_POSE, PTS)
     text = "u,v,X,Y\n" + "".join(

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from omnidev.cli.options import parse_floats, parse_size
-from omnidev.errors import OmnidevError
+from omnidev.errors import CalibrationError, OmnidevError, naming
 
 
 def register(sub: Any) -> None:
@@ -124,7 +124,10 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
         text = read_text(args.points, "point file (CSV u,v,X,Y)")
         pixels, plane = parse_points_csv(text, source=str(args.points))
-    cal = calibrate_tsai(pixels, plane, lens, indices=indices, refine=args.refine)
+    try:
+        cal = calibrate_tsai(pixels, plane, lens, indices=indices, refine=args.refine)
+    except CalibrationError as exc:
+        raise CalibrationError(naming(args.points or args.image, exc)) from None
     pnp = solvepnp_pose(pixels, plane, lens, cal)
     camera = NonSvpCamera(mirror, lens, cal.pose)
     write_camera_file(args.output, camera, force=args.force)

@@ -133,7 +133,25 @@ def _check_points(pixels: FloatArray, plane_mm: FloatArray, what: str) -> tuple[
         )
     if not (np.all(np.isfinite(uv)) and np.all(np.isfinite(xy))):
         raise CalibrationError(f"{_PREFIX}: non-finite calibration point coordinates")
+    _check_spread(uv, "image points (px)", 1e-3)
+    _check_spread(xy[:, :2], "plane points (mm)", 1e-6)
     return uv, xy[:, :2]
+
+
+def _check_spread(pts: FloatArray, what: str, tol: float) -> None:
+    """Refuse points that cannot fix a pose: fewer than :data:`MIN_POINTS` distinct ones
+    (``tol`` apart), or all on one line (the pose is then not unique, yet fits exactly)."""
+    distinct = len(np.unique(np.round(pts / tol), axis=0))
+    if distinct < MIN_POINTS:
+        raise CalibrationError(
+            f"{_PREFIX}: {distinct} distinct {what} among {len(pts)}; Tsai's coplanar "
+            f"calibration needs at least {MIN_POINTS} (repeated rows?)"
+        )
+    sv = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+    if sv[1] <= 1e-6 * sv[0]:
+        raise CalibrationError(
+            f"{_PREFIX}: the {what} all lie on one line; the pose needs points around the ring"
+        )
 
 
 def _nearest_rotation(m: FloatArray) -> FloatArray:
