@@ -198,7 +198,9 @@ def test_evdev_errors_name_the_node_and_the_fix(keyboard: Any) -> None:
         f"evdev button input 'evdev:{path}': no permission to read {path}: add the user to "
         "group input (sudo usermod -aG input USER, then log in again; Debian's udev gives "
         "/dev/input/event* to group input, mode 0660) or run omnidevd with the groups and "
-        "udev rule of udev/60-omnidev.rules and docs/daemon.md"
+        "udev rule of udev/60-omnidev.rules and docs/daemon.md; under omnidevd.service the "
+        "unit must allow char-input (sudo make install writes omnidevd.service.d/10-devices.conf "
+        "from the configuration)"
     )
     with pytest.raises(ButtonInputError) as exc:
         open_buttons("evdev:/dev/input/event999")
