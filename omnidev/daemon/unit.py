@@ -22,9 +22,6 @@ from omnidev.buttons import parse_spec
 from omnidev.buttons.spec import EvdevSpec
 from omnidev.daemon.config import DaemonConfig
 
-DROPIN = "/etc/systemd/system/omnidevd.service.d/10-devices.conf"
-"""Where the install script writes :func:`dropin_text` of the installed configuration."""
-
 
 def device_allow(config: DaemonConfig) -> list[str]:
     """The ``DeviceAllow=`` values (``"char-input r"``...) the configuration's button
