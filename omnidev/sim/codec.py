@@ -7,6 +7,8 @@ installed by scripts/install-system-deps.sh), encoded at a bit rate and decoded
 back, so the frames carry the codec's real artefacts (blocking, ringing, chroma
 bleeding, smearing of small bright details, rate-control changes between
 frames). Frames are H x W x 3 BGR uint8; ``ffmpeg`` needs even W and H.
+The encoders run on one thread: libx264's sliced threads made the same frames
+decode differently from run to run (a scene's figures changed between runs).
 
 Example:
     >>> import numpy as np
@@ -132,6 +134,8 @@ def _video(frames: Sequence[U8], comp: Compression, fps: float) -> list[U8]:
             "-i",
             "-",
             *codec_args,
+            "-threads",
+            "1",
             "-b:v",
             str(rate),
             "-maxrate",
