@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import queue
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -229,18 +230,18 @@ def run(
         ),
     ]
     t0 = time.perf_counter()
-    for t in threads:
-        t.start()
-    stages = list(done.values())
     try:
-        for d in stages:
-            while not d.is_set() and not p.stop.is_set():
-                d.wait(0.2)
-    except BaseException:  # Ctrl-C in the main thread: stop the stages, then re-raise
+        _start(threads)
+        for t in threads:
+            while not done[t.name].is_set() and not p.stop.is_set():
+                done[t.name].wait(0.2)
+    except BaseException:  # Ctrl-C or SIGTERM in the main thread: stop the stages, re-raise
         p.stop.set()
-        _wait(stages)
+        _wait([done[t.name] for t in threads if t.ident is not None], p.stop)
         raise
-    _wait(stages)
+    signalled = _wait(list(done.values()), p.stop)  # the others, after a failure
+    if signalled is not None:
+        raise signalled
     stats.wall_s = time.perf_counter() - t0
     if p.errors:
         raise p.errors[0]
@@ -248,15 +249,43 @@ def run(
     return stats
 
 
-def _wait(stages: list[threading.Event], timeout_s: float = 5.0) -> None:
-    """Wait until the stopped stages have left their work (each sets its event last).
+_HELD = {signal.SIGINT, signal.SIGTERM}
+
+
+def _start(threads: list[threading.Thread]) -> None:
+    """Start every stage with SIGINT and SIGTERM held back, so that the exception a
+    signal raises in the main thread finds all of them started (and stops them all),
+    never a read stage decoding while the caller closes the source."""
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD) if main else None
+    try:
+        for t in threads:
+            t.start()
+    finally:
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _wait(
+    stages: list[threading.Event], stop: threading.Event, timeout_s: float = 5.0
+) -> BaseException | None:
+    """Wait until the stages have left their work (each sets its event last).
 
     Not ``Thread.join``: on Python 3.11 a join interrupted by a signal (Ctrl-C,
     SIGTERM raised in the main thread) can mark a running thread stopped, and the
-    caller then closed the source under a stage still decoding in it (a crash
-    at exit, about one run in 100). A stage blocked in a device read for longer
-    than ``timeout_s`` is left behind (a daemon thread).
+    caller then closed the source under a stage still decoding in it (a crash or
+    a hang at exit, about one interrupted run in 100). A signal that arrives
+    meanwhile stops the stages and is returned, to be raised once they are out.
+    A stage blocked in a device read for longer than ``timeout_s`` is left
+    behind (a daemon thread).
     """
     deadline = time.monotonic() + timeout_s
+    signalled: BaseException | None = None
     for d in stages:
-        d.wait(max(0.0, deadline - time.monotonic()))
+        while not d.is_set() and (left := deadline - time.monotonic()) > 0:
+            try:
+                d.wait(left)
+            except BaseException as exc:  # a second Ctrl-C while the stages stop
+                stop.set()
+                signalled = signalled or exc
+    return signalled

@@ -185,3 +185,52 @@ def test_a_signal_returns_only_after_the_stages_left_their_work():
         signal.signal(signal.SIGUSR1, old)
     assert in_decode_at_return == [False]
     assert 1.4 <= waited < 5.0  # it waited for the decode (1.5 s), not the 5 s limit
+
+
+def test_a_signal_while_the_stages_start_stops_them_all(monkeypatch):
+    """SIGTERM arriving while run() starts its stage threads (the read stage already
+    decoding): it is held back until all have started, then stops every one, and run()
+    re-raises once the decode is over. Before, it left the pipeline running under a
+    caller that closed the source: a hang in ``sws_freeContext`` at exit."""
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers run in the main thread only; this test runs in another")
+    decoding = threading.Event()
+
+    def slow_source():
+        for f in frames(1000):
+            decoding.set()
+            time.sleep(0.8)
+            decoding.clear()
+            yield f
+
+    start = threading.Thread.start
+    main = threading.main_thread().ident
+    assert main is not None
+
+    def start_with_signal(self):
+        if self.name == "remap":  # the read stage runs: a SIGTERM lands now
+            assert decoding.wait(2.0)
+            signal.pthread_kill(main, signal.SIGTERM)
+            time.sleep(0.05)  # an unheld signal is raised here, inside Thread.start
+        start(self)
+
+    def on_signal(signum, frame):
+        raise SignalledError
+
+    monkeypatch.setattr(threading.Thread, "start", start_with_signal)
+    old = signal.signal(signal.SIGTERM, on_signal)
+    outs = [Collect("o")]
+    try:
+        with pytest.raises(SignalledError):
+            run(slow_source(), "bgr", [plus(0)], outs)
+        in_decode = decoding.is_set()
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    assert not in_decode
+    stages = {"read", "remap", "write:o"}
+    deadline = time.monotonic() + 2.0  # out of their work; the threads' own exit follows
+    while (names := {t.name for t in threading.enumerate()} & stages) and (
+        time.monotonic() < deadline
+    ):
+        time.sleep(0.01)
+    assert not names, f"stages still running: {names}"
