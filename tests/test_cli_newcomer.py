@@ -3,6 +3,8 @@ every view kind and key, sim options with help and defaults, a bounded memory es
 
 from __future__ import annotations
 
+import json
+import re
 import subprocess
 import sys
 
@@ -91,3 +93,23 @@ def test_every_command_has_max_memory_and_refuses_a_huge_view(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "needs about" in err and "GiB" in err and "--max-memory" in err
     assert main([*argv, "--max-memory", "0.001G"]) == 2  # a limit below what is in use
+
+
+def test_bench_says_it_runs_while_it_runs(tmp_path, monkeypatch, capsys):
+    """A benchmark that takes a while: a start line, "so far" lines while it works and
+    its wall time at the end, on stderr; the figures alone on stdout."""
+    from omnidev.cli import bench_cmd
+
+    (tmp_path / "nap.py").write_text(
+        '"""Sleeps."""\nimport time\n\n\ndef run(quick=False):\n'
+        "    time.sleep(0.35)\n    return {'slept_ms': 350.0}\n"
+    )
+    monkeypatch.setenv("OMNIDEV_BENCH_DIR", str(tmp_path))
+    monkeypatch.setattr(bench_cmd, "HEARTBEAT_S", 0.1)
+    assert main(["bench", "nap", "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out) == {"slept_ms": 350.0}
+    lines = err.splitlines()
+    assert lines[0] == "omnidev bench nap: running (a full run takes minutes; --quick is short)"
+    assert 2 <= sum(line.endswith("so far") for line in lines) <= 4
+    assert re.fullmatch(r"omnidev bench nap: done in 0 s", lines[-1])

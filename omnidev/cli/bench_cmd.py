@@ -3,6 +3,10 @@
 A benchmark is ``bench/NAME.py`` with ``run(quick: bool) -> dict`` whose keys
 name each figure with its unit (``build_ms``, ``ratio_vs_remap``...). Speed is
 reported as ratios against an anchor measured in the same run.
+
+Full runs take minutes and print their figures only at the end, so the command
+says on stderr when it starts, how long it has run every ``HEARTBEAT_S``
+seconds, and how long it took.
 """
 
 from __future__ import annotations
@@ -12,11 +16,18 @@ import importlib.util
 import json
 import os
 import re
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import omnidev
 from omnidev.errors import OmnidevError
+
+HEARTBEAT_S = 30.0  # seconds between the "still running" lines
 
 
 def bench_dir() -> Path:
@@ -79,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    result: dict[str, Any] = module.run(quick=args.quick)
+    with _heartbeat(args.name, args.quick):
+        result: dict[str, Any] = module.run(quick=args.quick)
     if args.json:
         print(json.dumps(result))
     else:
@@ -88,3 +100,32 @@ def run(args: argparse.Namespace) -> int:
             shown = f"{value:.4g}" if isinstance(value, float) else str(value)
             print(f"{key:<{width}}  {shown}")
     return 0
+
+
+def _minutes(seconds: float) -> str:
+    m, s = divmod(round(seconds), 60)
+    return f"{m} min {s:02d} s" if m else f"{s} s"
+
+
+@contextmanager
+def _heartbeat(name: str, quick: bool) -> Iterator[None]:
+    """Lines on stderr while benchmark ``name`` runs: its start, the time so far every
+    HEARTBEAT_S seconds (from a daemon thread), and its wall time at the end."""
+    t0 = time.monotonic()
+    how = "a short run (--quick)" if quick else "a full run takes minutes; --quick is short"
+    print(f"omnidev bench {name}: running ({how})", file=sys.stderr, flush=True)
+    stop = threading.Event()
+
+    def beat() -> None:
+        while not stop.wait(HEARTBEAT_S):
+            so_far = _minutes(time.monotonic() - t0)
+            print(f"omnidev bench {name}: {so_far} so far", file=sys.stderr, flush=True)
+
+    thread = threading.Thread(target=beat, name="bench-heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+    took = _minutes(time.monotonic() - t0)
+    print(f"omnidev bench {name}: done in {took}", file=sys.stderr, flush=True)
