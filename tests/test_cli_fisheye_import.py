@@ -95,6 +95,12 @@ def test_import_errors(tmp_path, capsys):
     assert "--max-angle-deg" in _one_line_error(
         capsys, ["calibrate", "import", str(ocam), "--max-angle-deg", "200", "-o", out, "--force"]
     )
+    huge = tmp_path / "huge.txt"  # finite, but 3 * 1e308 overflows (fuzz seed 13)
+    text = ocamcalib_text(lens, (640, 480))
+    assert "\n3 -100.0 0.0 0.001\n" in text
+    huge.write_text(text.replace("\n3 -100.0 0.0 0.001\n", "\n4 -100.0 0.0 0.001 1e308\n"))
+    err = _one_line_error(capsys, ["calibrate", "import", str(huge), "-o", out, "--force"])
+    assert f"{huge}: scaramuzza ss[3] = 1e+308 is too large" in err
 
 
 realdata = pytest.mark.skipif(

@@ -567,6 +567,9 @@ class Scaramuzza:
             raise ValueError("scaramuzza ss needs >= 2 coefficients and ss[0] < 0")
         _check("scaramuzza", xc=self.xc, yc=self.yc, c=self.c, d=self.d, e=self.e)
         _check("scaramuzza", **{f"ss[{i}]": float(v) for i, v in enumerate(self.ss)})
+        for i, v in enumerate(self.ss):
+            if not math.isfinite(i * float(v)):  # rho_max works on i * ss[i]
+                raise ValueError(f"scaramuzza ss[{i}] = {v:g} is too large")
         if self.invpol is not None:
             _check("scaramuzza", **{f"invpol[{i}]": float(v) for i, v in enumerate(self.invpol)})
         if self.c - self.d * self.e == 0:
