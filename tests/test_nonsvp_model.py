@@ -164,6 +164,9 @@ def test_bad_mirror_parameters() -> None:
     assert "mirror a" in _one_line(exc)
     with pytest.raises(CalibrationError):
         Mirror(float("nan"), 30.0, 10.0, 20.0)
+    with pytest.raises(CalibrationError) as exc:  # m / a overflows a float (fuzz seed 17)
+        Mirror(1e-200, 30.0, 10.0, 1e200)
+    assert "h=inf mm" in _one_line(exc)
     with pytest.raises(CalibrationError):
         Lens(2.9, (3.2, 2.4), (640, 0))
 

@@ -193,3 +193,14 @@ def test_board_landmarks_calibrate_a_camera(tmp_path):
         )
         == 2
     )
+
+
+def test_a_board_too_large_for_a_float_is_refused() -> None:
+    """Measured sides against a board whose size overflows (1e308 mm squares): a clean
+    refusal naming the board, not a division by zero (fuzz seed 17)."""
+    from omnidev.fisheye.pattern import parse_pattern
+    from omnidev.panotable.boards import PlacedBoard
+
+    huge = parse_pattern("charuco:5x7,1e308,5e307")
+    with pytest.raises(CalibrationError, match=r"^b1: the measured sides 100 and 140 cannot be"):
+        PlacedBoard.from_points("b1", huge, 0, [0, 0, 0], [100, 0, 0], [0, 140, 0])

@@ -162,7 +162,7 @@ class Mirror:
     def __post_init__(self) -> None:
         for name in ("a", "b", "h", "m"):
             object.__setattr__(self, name, _finite_positive(f"mirror {name}", getattr(self, name)))
-        z_rim = self.b * math.sqrt(1.0 + (self.m / self.a) ** 2)
+        z_rim = self.b * math.hypot(1.0, self.m / self.a)  # no overflow: inf at worst
         if abs(z_rim - (self.b + self.h)) > 1e-6 * (self.b + self.h):
             raise CalibrationError(
                 f"mirror rim (m={self.m} mm) is not on the surface: with a={self.a}, b={self.b} "

@@ -84,6 +84,11 @@ class PlacedBoard:
         if lx == 0 or ly == 0:
             raise CalibrationError(f"{name}: x_end and y_end must differ from origin")
         sx, sy = lx / wmm, ly / hmm
+        if not (0 < sx < math.inf and 0 < sy < math.inf):
+            raise CalibrationError(
+                f"{name}: the measured sides {lx:g} and {ly:g} cannot be a "
+                f"{wmm:g} x {hmm:g} mm board: re-measure, or check the pattern"
+            )
         if abs(sx / sy - 1) > tolerance:
             raise CalibrationError(
                 f"{name}: the measured sides are {lx:g} and {ly:g} but the board is "
