@@ -146,6 +146,19 @@ class SignalledError(Exception):
     """What the test's signal handler raises in the main thread (as Ctrl-C would)."""
 
 
+def raise_signalled(signum, frame):
+    raise SignalledError
+
+
+def slow_source(decoding: threading.Event, first_s: float, then_s: float):
+    """frames(1000), each decode a sleep (GIL released, as cv2's) with ``decoding`` set."""
+    for f in frames(1000):
+        decoding.set()
+        time.sleep(then_s if f.index else first_s)
+        decoding.clear()
+        yield f
+
+
 def test_a_signal_returns_only_after_the_stages_left_their_work():
     """A signal raised in the main thread while it waits: run() re-raises only once the
     read stage, here in a slow decode (GIL released, as cv2's), has come out of it.
@@ -155,21 +168,9 @@ def test_a_signal_returns_only_after_the_stages_left_their_work():
     at exit in about one of 100 interrupted ``omnidev unwarp`` runs.
     """
     decoding = threading.Event()
-    in_decode_at_return: list[bool] = []
-
-    def slow_source():
-        for f in frames(1000):
-            decoding.set()
-            time.sleep(0.3 if f.index else 1.5)  # the first decode is still on at the signal
-            decoding.clear()
-            yield f
-
-    def on_signal(signum, frame):
-        raise SignalledError
-
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signal handlers run in the main thread only; this test runs in another")
-    old = signal.signal(signal.SIGUSR1, on_signal)
+    old = signal.signal(signal.SIGUSR1, raise_signalled)
     main = threading.main_thread().ident
     assert main is not None
     timer = threading.Timer(0.5, lambda: signal.pthread_kill(main, signal.SIGUSR1))
@@ -177,13 +178,14 @@ def test_a_signal_returns_only_after_the_stages_left_their_work():
         timer.start()
         t0 = time.monotonic()
         with pytest.raises(SignalledError):
-            run(slow_source(), "bgr", [plus(0)], [Collect("o")])
-        in_decode_at_return.append(decoding.is_set())
+            # the first decode (1.5 s) is still on at the signal (0.5 s)
+            run(slow_source(decoding, 1.5, 0.3), "bgr", [plus(0)], [Collect("o")])
+        in_decode = decoding.is_set()
         waited = time.monotonic() - t0
     finally:
         timer.cancel()
         signal.signal(signal.SIGUSR1, old)
-    assert in_decode_at_return == [False]
+    assert not in_decode
     assert 1.4 <= waited < 5.0  # it waited for the decode (1.5 s), not the 5 s limit
 
 
@@ -195,14 +197,6 @@ def test_a_signal_while_the_stages_start_stops_them_all(monkeypatch):
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signal handlers run in the main thread only; this test runs in another")
     decoding = threading.Event()
-
-    def slow_source():
-        for f in frames(1000):
-            decoding.set()
-            time.sleep(0.8)
-            decoding.clear()
-            yield f
-
     start = threading.Thread.start
     main = threading.main_thread().ident
     assert main is not None
@@ -214,15 +208,12 @@ def test_a_signal_while_the_stages_start_stops_them_all(monkeypatch):
             time.sleep(0.05)  # an unheld signal is raised here, inside Thread.start
         start(self)
 
-    def on_signal(signum, frame):
-        raise SignalledError
-
     monkeypatch.setattr(threading.Thread, "start", start_with_signal)
-    old = signal.signal(signal.SIGTERM, on_signal)
+    old = signal.signal(signal.SIGTERM, raise_signalled)
     outs = [Collect("o")]
     try:
         with pytest.raises(SignalledError):
-            run(slow_source(), "bgr", [plus(0)], outs)
+            run(slow_source(decoding, 0.8, 0.8), "bgr", [plus(0)], outs)
         in_decode = decoding.is_set()
     finally:
         signal.signal(signal.SIGTERM, old)
