@@ -23,7 +23,7 @@ from omnidev import registry
 from omnidev.atomic import atomic_path
 from omnidev.camera import CameraModel
 from omnidev.errors import CalibrationError
-from omnidev.inputfile import check_nesting, read_bytes, read_gzip
+from omnidev.inputfile import MAX_MAGNITUDE, check_nesting, read_bytes, read_gzip
 
 UNWARPERS = "omnidev.unwarpers"
 
@@ -103,6 +103,8 @@ def read_real(fs: cv2.FileStorage, path: Path, key: str) -> float:
     value = float(node.real())
     if not np.isfinite(value):
         raise CalibrationError(f"{path}: key {key!r} is not finite")
+    if abs(value) > MAX_MAGNITUDE:
+        raise CalibrationError(f"{path}: key {key!r} is {value:g}, beyond +-{MAX_MAGNITUDE:g}")
     return value
 
 
@@ -117,6 +119,11 @@ def read_mat(fs: cv2.FileStorage, path: Path, key: str) -> np.ndarray[Any, Any]:
     arr = np.asarray(mat)
     if not np.all(np.isfinite(arr)):
         raise CalibrationError(f"{path}: matrix {key!r} has non-finite values")
+    biggest = float(np.max(np.abs(arr.astype(np.float64)))) if arr.size else 0.0
+    if biggest > MAX_MAGNITUDE:
+        raise CalibrationError(
+            f"{path}: matrix {key!r} has a value of {biggest:g}, beyond +-{MAX_MAGNITUDE:g}"
+        )
     return arr
 
 

@@ -26,6 +26,7 @@ import errno
 import gzip
 import io
 import json
+import math
 import os
 import stat
 import tomllib
@@ -40,6 +41,17 @@ MAX_TEXT_BYTES = 64 << 20
 
 MAX_NESTING = 64
 """Deepest nesting of lists/tables accepted in a JSON or TOML document."""
+
+MAX_MAGNITUDE = 1e15
+"""Largest |float| accepted in any file the project reads (TOML, JSON, calibration YAML).
+
+No length in mm or px, angle, rate or coefficient comes near it; 1e308 and its like
+pass ``isfinite`` and then overflow to inf in the first square or polynomial downstream,
+so they are refused where the file is read, naming the key."""
+
+MAX_INTEGER = (1 << 63) - 1
+"""Largest |integer| accepted in a TOML or JSON file (what fits a 64-bit signed integer;
+nanosecond timestamps fit, a 30-digit count does not)."""
 
 
 def _describe_size(n: int) -> str:
@@ -160,17 +172,55 @@ def check_nesting(text: str, path: Path | str, what: str, error: type[OmnidevErr
         raise error(f"{path}: nested deeper than {MAX_NESTING} levels; not a {what}")
 
 
+def _key_path(where: str, key: object) -> str:
+    if isinstance(key, int):
+        return f"{where}[{key}]"
+    return f"{where}.{key}" if where else str(key)
+
+
+def check_magnitudes(
+    doc: Any, path: Path | str, what: str, error: type[OmnidevError] = OmnidevError
+) -> None:
+    """Refuse a float beyond :data:`MAX_MAGNITUDE` or an integer beyond :data:`MAX_INTEGER`
+    anywhere in a parsed document, naming its key path (``a.b[2]``). NaN and inf are left
+    to the reader of each key, which knows whether it takes them."""
+    stack: list[tuple[str, Any]] = [("", doc)]
+    while stack:
+        where, node = stack.pop()
+        if isinstance(node, dict):
+            stack.extend((_key_path(where, k), v) for k, v in node.items())
+        elif isinstance(node, list):
+            stack.extend((_key_path(where, i), v) for i, v in enumerate(node))
+        elif isinstance(node, bool):
+            continue
+        elif isinstance(node, int) and abs(node) > MAX_INTEGER:
+            raise error(
+                f"{path}: {where or 'the document'} is {node}, an integer beyond 64 bits; "
+                f"not a valid {what}"
+            )
+        elif isinstance(node, float) and node == node and MAX_MAGNITUDE < abs(node) < math.inf:
+            raise error(
+                f"{path}: {where or 'the document'} is {node:g}; numbers in a {what} must "
+                f"be within +-{MAX_MAGNITUDE:g}"
+            )
+
+
 def loads_toml(
     text: str, path: Path | str, what: str, error: type[OmnidevError] = OmnidevError
 ) -> dict[str, Any]:
-    """Parse TOML text; a syntax error or absurd nesting is one line naming the file."""
+    """Parse TOML text; a syntax error, absurd nesting or an absurd number
+    (:func:`check_magnitudes`) is one line naming the file."""
     check_nesting(text, path, what, error)
     try:
-        return tomllib.loads(text)
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML ({exc})") from None
+    except ValueError:  # an integer of more than 4300 digits (sys.get_int_max_str_digits)
+        raise error(f"{path}: an integer with thousands of digits; not a {what}") from None
     except RecursionError:
         raise error(f"{path}: nested too deeply; not a {what}") from None
+    check_magnitudes(doc, path, what, error)
+    return doc
 
 
 def read_toml(
@@ -183,20 +233,35 @@ def read_toml(
 def loads_json(
     text: str, path: Path | str, what: str, error: type[OmnidevError] = OmnidevError
 ) -> Any:
-    """Parse JSON text; NaN and Infinity are refused (JSON has neither), as is deep nesting."""
+    """Parse JSON text; NaN and Infinity are refused (JSON has neither), as are deep nesting
+    and absurd numbers (:func:`check_magnitudes`; 1e400 parses to inf and is refused too)."""
     check_nesting(text, path, what, error)
 
     def constant(name: str) -> float:
         raise error(f"{path}: {name} is not a JSON number; not a valid {what}")
 
+    def real(raw: str) -> float:
+        value = float(raw)
+        if not math.isfinite(value):
+            raise error(f"{path}: {raw[:40]} overflows a float; not a valid {what}")
+        return value
+
+    def integer(raw: str) -> int:
+        digits = len(raw.lstrip("-"))
+        if digits > 19:
+            raise error(f"{path}: an integer of {digits} digits is beyond 64 bits; not a {what}")
+        return int(raw)
+
     try:
-        return json.loads(text, parse_constant=constant)
+        doc = json.loads(text, parse_constant=constant, parse_float=real, parse_int=integer)
     except json.JSONDecodeError as exc:
         raise error(
             f"{path}: not JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})"
         ) from None
     except RecursionError:
         raise error(f"{path}: nested too deeply; not a {what}") from None
+    check_magnitudes(doc, path, what, error)
+    return doc
 
 
 def read_json(path: Path | str, what: str, *, error: type[OmnidevError] = OmnidevError) -> Any:

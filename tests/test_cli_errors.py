@@ -77,6 +77,11 @@ def test_calibrate_writes_table_and_plot(tmp_path, capsys):
         ("u,v,X,Y,Z\n1,2,3,4,5\n1,2,abc,4,5\n", "line 3: column X is 'abc', not a number"),
         ("u,v,X,Y,Z\n1,2,3,4,5\n1,2,3,4\n", "line 3: 4 fields, the header has 5"),
         ("u,v,X,Y,Z\n1,2,3,4,nan\n", "line 2: column Z is not finite"),
+        # fuzz seed 19: a 30-digit group overflowed numpy's intp (a traceback)
+        (
+            "u,v,X,Y,Z,group\n1,2,3,4,5,123456789012345678901234567890\n",
+            "line 2: column group is 123456789012345678901234567890; |group| must be <= 1e+09",
+        ),
         ("u,v,X,Y,Z\n", "no landmark rows"),
         ("u,v,X,Y,Z\n" + "1,2,3,4,5\n" * 4, "4 landmarks: the 4th-degree radial function needs"),
         ("u,v,X,Y,Z\n" + "".join(f"{i},2,3,4,5\n" for i in range(8)), "distinct elevations"),

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from omnidev.errors import ConfigError
-from omnidev.inputfile import read_bytes
+from omnidev.inputfile import loads_json, loads_toml, read_bytes
 
 
 def _refusal(path: Path | str) -> str:
@@ -31,3 +31,33 @@ def test_refuses_what_is_not_a_regular_file(tmp_path):
     os.mkfifo(fifo)  # opened non-blocking: no writer, no hang
     assert _refusal(fifo) == f"{fifo}: is a FIFO, not a regular file; give the rig file as a file"
     assert _refusal(tmp_path) == f"{tmp_path}: is a folder, not a rig file"
+
+
+@pytest.mark.parametrize(
+    ("loads", "text", "said"),
+    [
+        (loads_toml, "[a]\nb = [0.5, -1e308]\n", "a.b[1] is -1e+308; numbers in a rig file must "
+         "be within +-1e+15"),
+        (loads_toml, "n = 123456789012345678901234567890\n", "n is 123456789012345678901234567890, "
+         "an integer beyond 64 bits"),
+        (loads_toml, "n = " + "9" * 5000 + "\n", "an integer with thousands of digits"),
+        (loads_json, '{"a": {"b": 1e300}}', "a.b is 1e+300; numbers in a rig file"),
+        (loads_json, "[1e400]", "1e400 overflows a float"),
+        (loads_json, "[" + "9" * 5000 + "]", "an integer of 5000 digits is beyond 64 bits"),
+    ],
+)  # fmt: skip
+def test_absurd_numbers_are_refused_naming_the_key(loads, text, said):
+    """1e308 passes isfinite and overflows in the first square downstream (fuzz seeds 13, 17);
+    a 5000-digit integer made Python's int() raise a bare ValueError."""
+    with pytest.raises(ConfigError) as info:
+        loads(text, "rig.toml", "rig file", ConfigError)
+    assert str(info.value).startswith("rig.toml: ")
+    assert said in str(info.value)
+
+
+def test_numbers_a_file_may_hold_pass():
+    text = '{"t_ns": 1796000000000000000, "x": -1e15, "y": 5e-324, "on": true}'
+    assert loads_json(text, "rec.jsonl", "pointer event", ConfigError) == {
+        "t_ns": 1796000000000000000, "x": -1e15, "y": 5e-324, "on": True
+    }  # fmt: skip
+    assert loads_toml("a = inf\nb = 9223372036854775807\n", "d.toml", "x")["b"] == (1 << 63) - 1

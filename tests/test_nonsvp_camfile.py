@@ -68,6 +68,19 @@ def test_bad_files_name_the_file(tmp_path):
     short.write_text("%YAML:1.0\nkind: nonsvp-hyper\nformat_version: 1\nmirror_a: 20\n")
     with pytest.raises(CalibrationError, match="short.yml.*mirror_b"):
         read_camera_file(short)
+    huge = tmp_path / "huge.yml"  # finite, but overflows in the mirror's squares
+    huge.write_text(
+        "\n".join(
+            "mirror_a: 1e308" if ln.startswith("mirror_a:") else ln for ln in text.splitlines()
+        )
+    )
+    with pytest.raises(CalibrationError, match=r"huge.yml: key 'mirror_a' is 1e\+308, beyond"):
+        read_camera_file(huge)
+    tsai = tmp_path / "tsai.yml"
+    head, tail = _with_tsai(text, cam).rsplit("data: [", 1)  # tail: tsai_T's data
+    tsai.write_text(head + "data: [ -1e300," + tail.split(",", 1)[1])
+    with pytest.raises(CalibrationError, match=r"tsai.yml: matrix 'tsai_T' has a value of 1e\+300"):
+        read_camera_file(tsai)
     argv = [
         "unwarp", str(FX / "omni.png"), "--camera", str(inside),
         "--view", "top:32x24,x=4000,y=4000,z=-2000", "-o", str(tmp_path / "x.png"),

@@ -85,11 +85,16 @@ def read_landmarks_csv(path: Path) -> Landmarks:
         if gi is not None:
             raw = fields[gi].strip()
             try:
-                groups.append(int(raw))
+                group = int(raw)
             except ValueError:
                 raise CalibrationError(
                     f"{path} line {lineno}: column group is {raw!r}, not an integer"
                 ) from None
+            if abs(group) > MAX_VALUE:
+                raise CalibrationError(
+                    f"{path} line {lineno}: column group is {raw}; |group| must be <= {MAX_VALUE:g}"
+                )
+            groups.append(group)
         values.append(row)
         rows.append(lineno)
     if not values:
