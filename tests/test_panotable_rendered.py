@@ -198,9 +198,36 @@ def test_board_landmarks_calibrate_a_camera(tmp_path):
 def test_a_board_too_large_for_a_float_is_refused() -> None:
     """Measured sides against a board whose size overflows (1e308 mm squares): a clean
     refusal naming the board, not a division by zero (fuzz seed 17)."""
-    from omnidev.fisheye.pattern import parse_pattern
+    from omnidev.fisheye.pattern import Pattern
     from omnidev.panotable.boards import PlacedBoard
 
-    huge = parse_pattern("charuco:5x7,1e308,5e307")
+    huge = Pattern("charuco", 5, 7, 1e308, 5e307, "DICT_5X5_100")  # parse_pattern refuses it now
     with pytest.raises(CalibrationError, match=r"^b1: the measured sides 100 and 140 cannot be"):
         PlacedBoard.from_points("b1", huge, 0, [0, 0, 0], [100, 0, 0], [0, 140, 0])
+
+
+@pytest.mark.parametrize(
+    ("spec", "said"),
+    [
+        ("charuco:5x7,30,5e-324", "square and marker sizes must be 0.001 .. 1e+06 mm"),
+        ("charuco:5x7,1e308,5e307", "square and marker sizes must be 0.001 .. 1e+06 mm"),
+        ("chessboard:9x6,1e-4", "square and marker sizes must be 0.001 .. 1e+06 mm"),
+        ("charuco:99999x99999,30,20", "at most 200 along a side"),
+        ("charuco:" + "9" * 5000 + "x6,30,20", "expected chessboard:COLSxROWS"),
+    ],
+)
+def test_board_rig_patterns_out_of_range_are_refused(tmp_path, capsys, spec, said) -> None:
+    """A denormal marker size became 0 in OpenCV's 32-bit float and CharucoBoard raised a
+    SystemError traceback (fuzz seed 29); 99999x99999 squares asked numpy for 20 GB of ids."""
+    rig = tmp_path / "boards.toml"
+    rig.write_text(
+        f'[[board]]\npattern = "{spec}"\norigin = [0, 0, 0]\nx_end = [150, 0, 0]\n'
+        "y_end = [0, 210, 0]\n"
+    )
+    cv2.imwrite(str(tmp_path / "shot.png"), np.zeros((64, 64), np.uint8))
+    argv = ["landmarks", "board", str(tmp_path / "shot.png"), "--boards", str(rig), "-o",
+            str(tmp_path / "x.csv")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{rig} board 1: --pattern" in err and said in err
+    assert not (tmp_path / "x.csv").exists()

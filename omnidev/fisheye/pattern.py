@@ -28,6 +28,13 @@ FloatArray = NDArray[np.float64]
 
 DEFAULT_DICTIONARY = "DICT_5X5_100"
 
+MAX_SQUARES = 200
+"""Most squares (ChArUco) or inner corners (chessboard) along one side of a pattern."""
+
+SIZE_RANGE_MM = (1e-3, 1e6)
+"""Smallest and largest square or marker size accepted (mm): a micron to a kilometre. OpenCV
+stores them as 32-bit floats, where 5e-324 becomes 0 and fails an assertion."""
+
 
 @dataclass(frozen=True)
 class Pattern:
@@ -95,7 +102,9 @@ class Pattern:
         )
 
 
-_SPEC = re.compile(r"^(chessboard|charuco):(\d+)x(\d+),([^,]+)(?:,([^,]+))?(?:,([A-Za-z0-9_]+))?$")
+_SPEC = re.compile(
+    r"^(chessboard|charuco):(\d{1,9})x(\d{1,9}),([^,]+)(?:,([^,]+))?(?:,([A-Za-z0-9_]+))?$"
+)
 
 
 def parse_pattern(text: str) -> Pattern:
@@ -122,6 +131,14 @@ def parse_pattern(text: str) -> Pattern:
         ) from None
     if square_mm <= 0:
         raise CalibrationError(f"--pattern {text!r}: the square size must be > 0 mm")
+    lo, hi = SIZE_RANGE_MM
+    sizes = [square_mm, marker_mm] if marker is not None and marker_mm > 0 else [square_mm]
+    if not all(lo <= x <= hi for x in sizes):
+        raise CalibrationError(
+            f"--pattern {text!r}: square and marker sizes must be {lo:g} .. {hi:g} mm"
+        )
+    if int(cols) > MAX_SQUARES or int(rows) > MAX_SQUARES:
+        raise CalibrationError(f"--pattern {text!r}: at most {MAX_SQUARES} along a side")
     if kind == "chessboard":
         if marker is not None:
             raise CalibrationError(f"--pattern {text!r}: a chessboard takes COLSxROWS,SQUARE_MM")

@@ -116,13 +116,19 @@ class PlacedBoard:
         p = self.pattern
         d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, p.dictionary))
         n = (p.squares[0] * p.squares[1]) // 2
-        ids = np.arange(self.first_marker, self.first_marker + n, dtype=np.int32)
-        if ids[-1] >= d.bytesList.shape[0]:
+        first, last = self.first_marker, self.first_marker + n - 1
+        if last >= d.bytesList.shape[0]:
             raise CalibrationError(
-                f"{self.name}: markers {ids[0]}..{ids[-1]} exceed {p.dictionary}'s "
+                f"{self.name}: markers {first}..{last} exceed {p.dictionary}'s "
                 f"{d.bytesList.shape[0]} ids"
             )
-        return cv2.aruco.CharucoBoard(p.squares, float(p.square_mm), float(p.marker_mm), d, ids)
+        ids = np.arange(first, last + 1, dtype=np.int32)
+        try:
+            return cv2.aruco.CharucoBoard(p.squares, float(p.square_mm), float(p.marker_mm), d, ids)
+        except (cv2.error, SystemError):  # OpenCV's own checks of what parse_pattern let by
+            raise CalibrationError(
+                f"{self.name}: OpenCV refuses the board {p.describe()}"
+            ) from None
 
 
 MAX_COORDINATE = 1e9
