@@ -159,3 +159,33 @@ def test_usb_resolution_through_sysfs(tmp_path):
     assert parse_usb_id("046D:0825") == ("046d", "0825", None)
     with pytest.raises(SourceError, match="4-digit hex"):
         parse_usb_id("46d:825")
+
+
+def test_a_frame_of_another_size_is_refused_naming_it(tmp_path):
+    """A damaged MJPEG whose frame 5 says 65 px wide in its JPEG header (fuzz seed 37: PyAV
+    asserted "width has to be even" on the 4:2:0 planes, a traceback). PyAV's reader and the
+    batch range reader refuse it naming the frame; frames 0..4 come first."""
+    from omnidev.batch.avrange import index_video, read_range
+    from omnidev.sources.avfile import AvVideoSource
+
+    write_video(tmp_path / "v.avi")
+    data = bytearray((tmp_path / "v.avi").read_bytes())
+    sof = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xC0]
+    assert len(sof) == 10
+    assert data[sof[5] + 7 : sof[5] + 9] == b"\x00\x40"  # FF C0, length, precision, h, w = 64
+    data[sof[5] + 7 : sof[5] + 9] = b"\x00\x41"
+    bad = tmp_path / "w.avi"
+    bad.write_bytes(bytes(data))
+    said = r"video:.*w.avi: frame 5 is 65x48, not the stream's 64x48"
+    for layout in ("native", "bgr"):
+        src = AvVideoSource(bad)
+        assert src.native_layout in ("yuv420p", "yuvj420p")  # the layout PyAV asserted on
+        seen = []
+        with pytest.raises(SourceError, match=said):
+            for f in src.frames(src.native_layout if layout == "native" else layout):
+                seen.append(f.index)
+        src.close()
+        assert seen == [0, 1, 2, 3, 4]
+    whole = index_video(bad, 100).ranges[0]
+    with pytest.raises(SourceError, match=said):
+        list(read_range(bad, whole, "bgr"))

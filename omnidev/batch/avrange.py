@@ -39,6 +39,7 @@ import numpy as np
 
 from omnidev.errors import OutputError, SourceError
 from omnidev.frame import Frame
+from omnidev.sources.avfile import frame_image
 
 PLANAR = ("yuv420p", "yuvj420p")
 
@@ -257,6 +258,7 @@ def _decode(
     fmt = {"bgr": "bgr24", "gray": "gray"}.get(layout, layout)
     container, stream = _open(path, threads)
     name = f"video:{path}"
+    size = (int(stream.codec_context.width), int(stream.codec_context.height))
     kept = 0
     try:
         if seek:
@@ -282,9 +284,7 @@ def _decode(
                 if seek and kept == 0 and t != r.start_pts:
                     yield None
                     return
-                if vf.format.name != fmt:
-                    vf = vf.reformat(format=fmt)
-                image = np.asarray(vf.to_ndarray(), np.uint8)
+                image = frame_image(vf, fmt, size, name, r.start + kept)
                 kept += 1
                 stats.decode_s += time.perf_counter() - t0
                 yield image

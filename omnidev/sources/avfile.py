@@ -30,6 +30,23 @@ from omnidev.sources import SourceBase
 PLANAR = ("yuv420p", "yuvj420p")
 
 
+def frame_image(vf: Any, fmt: str, size: tuple[int, int], name: str, index: int) -> np.ndarray:
+    """A decoded PyAV frame's pixels in ``fmt`` (``bgr24``, ``gray``, ``yuv420p``, ...).
+
+    A frame whose size is not the stream's ``size`` (width, height; px) is refused naming it:
+    a damaged file's picture header can say another size mid-stream, which no map fits (and
+    PyAV asserts on an odd width in 4:2:0).
+    """
+    if size[0] > 0 and size[1] > 0 and (vf.width, vf.height) != size:
+        raise SourceError(
+            f"{name}: frame {index} is {vf.width}x{vf.height}, not the stream's "
+            f"{size[0]}x{size[1]} (damaged file, or a size change mid-stream)"
+        )
+    if vf.format.name != fmt:
+        vf = vf.reformat(format=fmt)
+    return np.asarray(vf.to_ndarray(), np.uint8)
+
+
 def available() -> bool:
     """True when PyAV can be imported."""
     try:
@@ -92,9 +109,7 @@ class AvVideoSource(SourceBase):
         index = 0
         try:
             for vf in self._container.decode(self._stream):
-                if vf.format.name != fmt:
-                    vf = vf.reformat(format=fmt)
-                image = np.asarray(vf.to_ndarray(), np.uint8)
+                image = frame_image(vf, fmt, self.size, self.name, index)
                 yield Frame(image, time.monotonic_ns(), index)
                 index += 1
         except av.FFmpegError as exc:
