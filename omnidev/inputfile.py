@@ -5,7 +5,9 @@ CSVs, layouts, point files, recordings, other tools' calibrations) goes
 through :func:`read_text` or :func:`read_bytes`, so that each of them says the
 same thing, naming the file, for a folder, a symlink loop, a device such as
 /dev/zero, an unreadable file, a file far too large to be what it claims, or
-bytes that are not UTF-8 text; and none of them reads without end.
+bytes that are not UTF-8 text; and none of them reads without end. The
+TOML and JSON parsers here also refuse absurd nesting and absurd numbers
+(:func:`check_magnitudes`), naming the key.
 
 The errors are of the class the caller passes (``error=ConfigError`` for a
 daemon configuration, ...), so the CLI prints them as one line.
