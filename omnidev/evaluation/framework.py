@@ -9,6 +9,7 @@ import importlib
 import math
 import multiprocessing
 import pkgutil
+import signal
 import time
 import traceback
 from collections import defaultdict
@@ -150,6 +151,14 @@ def run_one(task: Task, seed: int, options: Mapping[str, Any], outdir: Path | No
     return res
 
 
+def _worker_init() -> None:
+    """A pool worker ends on SIGTERM by the kernel's default action. The handler it inherits
+    from omnidev's CLI raises in Python's main thread only, and the kernel may hand the
+    signal to an OpenCV or BLAS thread instead, leaving an idle worker waiting for work
+    forever (and ``omnidev eval --jobs 2`` hung in Pool.terminate after its last scene)."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _worker(args: tuple[str, int, dict[str, Any]]) -> SceneResult:
     name, seed, options = args
     return run_one(load_task(name), seed, options, None)
@@ -175,11 +184,13 @@ def run_scenes(
                 bar.update()
         else:
             ctx = multiprocessing.get_context("fork")
-            with ctx.Pool(jobs, maxtasksperchild=20) as pool:
+            with ctx.Pool(jobs, initializer=_worker_init, maxtasksperchild=20) as pool:
                 work = [(task.name, s, dict(options)) for s in seeds]
                 for r in pool.imap_unordered(_worker, work):
                     results.append(r)
                     bar.update()
+                pool.close()  # the workers end on their own; terminate() only on an error
+                pool.join()
     finally:
         bar.close()
     return sorted(results, key=lambda r: r.seed)
