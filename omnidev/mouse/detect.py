@@ -461,9 +461,11 @@ def side_edge_strength(
     is two bins wide). Returns (peak votes E_i, length of W along the side in pixels,
     the peak's line or None when W holds no edge pixel).
     """
+    if not (np.isfinite(p).all() and np.isfinite(q).all()):  # a degenerate group
+        return 0.0, 0.0, None
     v = q - p
     length = float(np.hypot(*v))
-    if not length >= 1.0:  # also NaN (a degenerate group)
+    if not length >= 1.0:
         return 0.0, 0.0, None
     t_hat = v / length
     n_hat = np.array([-t_hat[1], t_hat[0]])  # inwards for clockwise order with y down
