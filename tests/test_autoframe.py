@@ -123,8 +123,9 @@ def test_sample_covers_both_cameras_and_the_seam() -> None:
 def test_the_first_step_after_lock_on_does_not_turn_the_view_back() -> None:
     """Seed 5027 (fisheye, 480 px, 10 fps; a held-out seed of the first evaluation): the
     person appears standing; the view's acquiring swing stopped at the first, partial
-    blob's centroid, and a 2.3-degree correction the other way turned the view back
-    where the person did not turn. The first step after lock-on needs the reverse zone."""
+    blob's centroid, and a tilt step then dragged the pan 2.5 degrees the other way,
+    turning the view back where the person did not turn. Pan and tilt now leave their
+    zones each on its own, and the first pan step after lock-on needs the reverse zone."""
     r = run_video(5027)
     assert r["video"]["kind"] == "normal"
     assert r["view_reversals"] <= r["object_reversals"], r
