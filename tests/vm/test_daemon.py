@@ -176,6 +176,24 @@ def _unplug_vivid() -> None:
     )
 
 
+def _replug_vivid(
+    daemon: subprocess.Popen[bytes], raw: Path, capture: str
+) -> subprocess.Popen[bytes]:
+    """Bring the camera back (modprobe vivid, its loop fed again from ``raw``) under the
+    same node; returns the new feeder. The daemon is frozen meanwhile only so that it
+    cannot open the capture node before vivid is switched to its HDMI loop (vivid
+    refuses input changes while a reader streams)."""
+    daemon.send_signal(signal.SIGSTOP)
+    try:
+        subprocess.run(["modprobe", "vivid", "n_devs=1", "node_types=0x101"], check=True)
+        subprocess.run(["udevadm", "settle", "--timeout=60"], check=False)
+        capture2, feeder = start_loop(raw)
+    finally:
+        daemon.send_signal(signal.SIGCONT)
+    assert capture2 == capture, "vivid came back under another node; the config names one"
+    return feeder
+
+
 def test_daemon_keeps_running_when_the_camera_is_unplugged(tmp_path):
     raw, _ = _fixture()
     capture, feeder = start_loop(raw)
@@ -205,18 +223,8 @@ def test_daemon_keeps_running_when_the_camera_is_unplugged(tmp_path):
         retries = request(Path(sock), "status")["camera_retries"]
         _wait(lambda: request(Path(sock), "status")["camera_retries"] >= retries + 2, 30, "retries")
 
-        # The camera returns. The daemon is frozen meanwhile only so that it cannot
-        # open the capture node before the test has switched vivid to its HDMI
-        # loop (vivid refuses input changes while a reader streams).
         tracked = request(Path(sock), "status")["tracked"]
-        daemon.send_signal(signal.SIGSTOP)
-        try:
-            subprocess.run(["modprobe", "vivid", "n_devs=1", "node_types=0x101"], check=True)
-            subprocess.run(["udevadm", "settle", "--timeout=60"], check=False)
-            capture2, feeder = start_loop(raw)
-        finally:
-            daemon.send_signal(signal.SIGCONT)
-        assert capture2 == capture, "vivid came back under another node; the config names one"
+        feeder = _replug_vivid(daemon, raw, capture)
         _wait(
             lambda: request(Path(sock), "status")["tracked"] > tracked + 20,
             120,

@@ -38,7 +38,7 @@ from omnidev.sim.fisheye import EquidistantFisheyeCamera
 from omnidev.sim.render import render_omni
 from omnidev.sim.scene import RoomScene
 from omnidev.viewspec import parse_view
-from tests.vm.test_daemon import _unplug_vivid, _wait
+from tests.vm.test_daemon import _replug_vivid, _unplug_vivid, _wait
 from tests.vm.vivid import start_loop, stop, write_raw
 
 NODE = "/dev/video10"
@@ -141,7 +141,7 @@ def _read(tmp: Path, name: str, offline: list[np.ndarray]) -> dict[str, Any]:
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
     )  # fmt: skip
     # the reader's own rate: from its first frame in the file to its last
-    first = last = None
+    first = None
     while reader.poll() is None and time.monotonic() - t0 < 600:
         n = raw.stat().st_size // size if raw.exists() else 0
         if n >= 1 and first is None:
@@ -218,17 +218,8 @@ def test_daemon_stream_from_vivid_to_loopback_survives_an_unplug(tmp_path, vm_fi
         retries = _stream()["camera_retries"]
         _wait(lambda: _stream()["camera_retries"] >= retries + 2, 30, "retries")
         assert daemon.poll() is None
-        # frozen only so that it cannot open the capture node before vivid is switched
-        # to its HDMI loop (vivid refuses input changes while a reader streams)
         written = _stream()["written"]
-        daemon.send_signal(signal.SIGSTOP)
-        try:
-            subprocess.run(["modprobe", "vivid", "n_devs=1", "node_types=0x101"], check=True)
-            subprocess.run(["udevadm", "settle", "--timeout=60"], check=False)
-            capture2, feeder = start_loop(raw)
-        finally:
-            daemon.send_signal(signal.SIGCONT)
-        assert capture2 == capture, "vivid came back under another node; the config names one"
+        feeder = _replug_vivid(daemon, raw, capture)
         _wait(lambda: _stream()["written"] >= written + 30, 120, "the stream to resume")
         assert _stream()["state"] == "running"
         again = _read(tmp_path, "after", offline)
