@@ -10,7 +10,8 @@ so every frame differs) plays in a loop at RATE frames per second through
 the reader (v4l2-ctl for ``bgr24``, ffmpeg for ``yuyv``), started once the
 device shows its format, takes K frames. Each is matched to the clip's frames
 unwarped offline (the same decoder and maps through the Python API): they must be
-K consecutive frames of the loop, none missing or repeated, each at >= 40 dB
+K consecutive frames of the loop, none missing or repeated (but for one repeat among
+the first three, a reader joining the stream), each at >= 40 dB
 PSNR (bgr24: byte for byte). The tests run one after another on the same device,
 so the second also shows that a new writer takes the device over from the last
 one (with exclusive_caps=1).
@@ -48,6 +49,7 @@ SIZE = 320  # fisheye frames, px
 N = 36  # frames in the clip (the loop)
 K = 24  # frames each reader takes
 RATE = 6.0  # frames per second the source is paced at
+JOIN = 3  # the first frames a reader takes, where one repeat is the join's
 W, H = 320, 240
 VIEW = f"perspective:{W}x{H},fov=100,tilt=35,pan=20"
 OMNIDEV = Path(sys.executable).parent / "omnidev"
@@ -132,11 +134,18 @@ def _stream(clip: Clip, fmt: str, reader: list[str], tmp: Path) -> tuple[float, 
 
 def _check(frames: list[np.ndarray], offline: list[np.ndarray], key: str, figures: Any) -> None:
     assert len(frames) == K, f"{len(frames)} of {K} frames came back"
-    # A reader that joins a running stream may be handed the frame it joined on twice
-    # (v4l2loopback 0.12, seen in the VM); after that, every frame once and in order.
+    # A reader that joins a running stream may be handed one of its first frames twice
+    # (v4l2loopback 0.12 in the VM: the frame it joined on, or in one CI run of ffmpeg the
+    # next one, read as 7, 8, 8, 9, ...); after the first JOIN frames, every frame once and
+    # in order.
     repeats = 0
-    while len(frames) > 1 and np.array_equal(frames[0], frames[1]):
-        frames, repeats = frames[1:], repeats + 1
+    kept = frames[:1]
+    for i, f in enumerate(frames[1:], 1):
+        if i < JOIN and np.array_equal(f, kept[-1]):
+            repeats += 1
+        else:
+            kept.append(f)
+    frames = kept
     indices, psnrs = [], []
     for f in frames:
         scores = [cv2.PSNR(f, o) for o in offline]
@@ -145,7 +154,7 @@ def _check(frames: list[np.ndarray], offline: list[np.ndarray], key: str, figure
     steps = [(b - a) % N for a, b in itertools.pairwise(indices)]
     figures[key] = {
         "frames_read": len(frames) + repeats,
-        "first_frame_repeats": repeats,
+        "join_repeats": repeats,
         "first_index": indices[0],
         "steps_not_1": sum(s != 1 for s in steps),
         "psnr_db_min": round(min(min(psnrs), 99.0), 2),
