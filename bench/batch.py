@@ -1,8 +1,8 @@
 """Batch unwarping on Dask: 1 and 2 workers against single-process ``omnidev unwarp``, same run.
 
 Input (made once per run, or reused from $OMNIDEV_BENCH_CACHE): ``videos`` H.264
-clips (4, or 2 with --quick) of ``frames`` frames each (240, or 96 with
---quick), 960x960 4:2:0, GOP 48 with 2 B-frames (as a surveillance or dash
+clips (4, or 2 with --quick) of ``frames`` frames each (480: 19 s at 25 fps,
+or 96 with --quick), 960x960 4:2:0, GOP 48 with 2 B-frames (as a surveillance or dash
 camera records), each omnidev.sim's room through an ideal 190-degree
 equidistant fisheye looking up, turned 0.4 degrees further each frame, with
 sensor noise (sigma 2, one of 17 noise fields per frame, in turn). Output:
@@ -15,7 +15,14 @@ Cases, each the whole command a user runs, timed from process start to exit
 
 - ``single``: ``omnidev unwarp`` once per input, one after the other, as a shell
   loop would (the anchor: what a user has without ``omnidev batch``), with its
-  default threads (the usable cores); ``single_1t``: the same with --threads 1.
+  default threads (the usable cores); ``single_1t``: the same with --threads 1;
+  ``single_1t_p2``: two such loops at once, half the inputs each (``xargs -P 2``,
+  what a user might script instead of a cluster). ``pin`` / ``pin_p2``: the
+  ``single_1t`` loop pinned to one core (``taskset``), and two such loops pinned
+  to the two cores at once: what this machine gives two independent one-core
+  processes, the ceiling of any 2-worker scheme here (a ``--threads 1`` process
+  left unpinned spreads its decoder, encoder and stage threads over both cores,
+  so ``single_1t_p2`` is no ceiling).
 - ``batch_w1`` / ``batch_w2``: ``omnidev batch unwarp`` over all inputs on a
   local cluster of 1 / 2 worker processes (one thread each, ``--range-frames
   48``: one task per 48 frames). A task of one thread uses one core: its
@@ -26,6 +33,8 @@ Cases, each the whole command a user runs, timed from process start to exit
 Figures: ``*_fps`` (frames / median wall), ``*_job_fps`` (frames / the job's
 own wall time from its --json report: without Python's and the cluster's
 start), ``ratio_w2_vs_w1`` (whole commands; target >= 1.7 on 2 idle cores),
+``ratio_parallel_ceiling`` (``pin`` over ``pin_p2``: the machine's own
+2-core scaling, which ``ratio_w2_vs_w1`` cannot exceed), ``ratio_w2_vs_xargs_p2``,
 ``ratio_w2_vs_w1_job`` (the jobs' own wall times: without the cluster's start,
 which does not shrink with more workers), ``ratio_w1_vs_single`` and
 ``ratio_w2_vs_single`` (against the anchor), ``ratio_w1_vs_single_1t``,
@@ -58,6 +67,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -127,6 +137,12 @@ def _timed(cmd: list[str]) -> tuple[float, str]:
     return wall, p.stdout
 
 
+def _loop(cmds: list[list[str]], core: int | None = None) -> None:
+    """Run the commands one after the other (``core``: each pinned to that core)."""
+    for cmd in cmds:
+        _timed(cmd if core is None else ["taskset", "-c", str(core), *cmd])
+
+
 def _noop_ms(workers: int, tasks: int = 400) -> float:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from omnidev.batch.runner import start_local_cluster
@@ -145,14 +161,15 @@ def _noop_ms(workers: int, tasks: int = 400) -> float:
 
 
 def run(quick: bool = False) -> dict[str, Any]:
-    videos, frames = (2, 96) if quick else (4, 240)
+    videos, frames = (2, 96) if quick else (4, 480)
     t_bench = time.perf_counter()
     reps = int(os.environ.get("OMNIDEV_BENCH_REPS", 1 if quick else 2))
     omnidev_bin = str(Path(sys.executable).parent / "omnidev")
     cache = os.environ.get("OMNIDEV_BENCH_CACHE")
+    cores = sorted(os.sched_getaffinity(0))
     result: dict[str, Any] = {
         "input": f"{videos} videos x {frames} frames {SIZE}x{SIZE} H.264 GOP 48, -> {VIEW} H.264",
-        "cores": len(os.sched_getaffinity(0)),
+        "cores": len(cores),
         "reps": reps,
         "load_avg_1min_start": round(os.getloadavg()[0], 2),
     }
@@ -162,22 +179,34 @@ def run(quick: bool = False) -> dict[str, Any]:
         data.mkdir(parents=True, exist_ok=True)
         paths, cam = _input(data, videos, frames)
         total = videos * frames
-        walls: dict[str, list[float]] = {"single": [], "single_1t": [], "w1": [], "w2": []}
+        walls: dict[str, list[float]] = {
+            "single": [], "single_1t": [], "single_1t_p2": [], "pin": [], "pin_p2": [],
+            "w1": [], "w2": [],
+        }  # fmt: skip
         jobs: dict[str, list[dict[str, Any]]] = {"w1": [], "w2": []}
         load: dict[str, list[float]] = {k: [] for k in walls}
         for rep in range(reps):
-            for case in ("single", "w1", "w2", "single_1t"):
+            for case in ("single", "w1", "w2", "single_1t", "single_1t_p2", "pin", "pin_p2"):
                 out = work / f"out-{case}-{rep}"
                 load[case].append(round(os.getloadavg()[0], 2))
-                if case.startswith("single"):
+                if not case.startswith("w"):
                     out.mkdir()
-                    t0 = time.perf_counter()
+                    cmds = []
                     for p in paths:
                         cmd = [omnidev_bin, "unwarp", str(p), "--camera", str(cam),
                                "--view", VIEW, "-o", str(out / p.name)]  # fmt: skip
-                        if case == "single_1t":
+                        if case != "single":
                             cmd += ["--threads", "1"]
-                        _timed(cmd)
+                        cmds.append(cmd)
+                    t0 = time.perf_counter()
+                    if case.endswith("_p2"):  # xargs -P 2: two loops, half the inputs each
+                        pin = case == "pin_p2"
+                        halves = [cmds[0::2], cmds[1::2]]
+                        where = [cores[0], cores[-1]] if pin else [None, None]
+                        with ThreadPoolExecutor(2) as pool:
+                            list(pool.map(_loop, halves, where))
+                    else:
+                        _loop(cmds, cores[0] if case == "pin" else None)
                     walls[case].append(time.perf_counter() - t0)
                     continue
                 cmd = [omnidev_bin, "batch", "unwarp", *map(str, paths), "--camera", str(cam),
@@ -191,8 +220,12 @@ def run(quick: bool = False) -> dict[str, Any]:
                 jobs[case].append(report)
         med = {k: statistics.median(v) for k, v in walls.items()}
         job_wall = {k: statistics.median(r["wall_s"] for r in v) for k, v in jobs.items()}
-        for k in ("single", "single_1t"):
+        for k in ("single", "single_1t", "single_1t_p2"):
             result[f"{k}_fps"] = round(total / med[k], 2)
+        result["pin_fps"] = round(total / med["pin"], 2)
+        result["pin_p2_fps"] = round(total / med["pin_p2"], 2)
+        result["ratio_parallel_ceiling"] = round(med["pin"] / med["pin_p2"], 3)
+        result["ratio_w2_vs_xargs_p2"] = round(med["single_1t_p2"] / med["w2"], 3)
         for k in ("w1", "w2"):
             result[f"batch_{k}_fps"] = round(total / med[k], 2)
             result[f"batch_{k}_job_fps"] = round(total / job_wall[k], 2)
