@@ -34,7 +34,8 @@ Figures: ``*_fps`` (frames / median wall), ``*_job_fps`` (frames / the job's
 own wall time from its --json report: without Python's and the cluster's
 start), ``ratio_w2_vs_w1`` (whole commands; target >= 1.7 on 2 idle cores),
 ``ratio_parallel_ceiling`` (``pin`` over ``pin_p2``: the machine's own
-2-core scaling, which ``ratio_w2_vs_w1`` cannot exceed), ``ratio_w2_vs_xargs_p2``,
+2-core scaling, which ``ratio_w2_vs_w1`` cannot exceed), ``ratio_w2_vs_xargs_p2``
+(``single_1t_p2``'s wall over ``w2``'s: above 1, the batch beats two plain loops),
 ``ratio_w2_vs_w1_job`` (the jobs' own wall times: without the cluster's start,
 which does not shrink with more workers), ``ratio_w1_vs_single`` and
 ``ratio_w2_vs_single`` (against the anchor), ``ratio_w1_vs_single_1t``,
