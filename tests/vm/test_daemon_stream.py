@@ -38,6 +38,7 @@ from omnidev.sim.fisheye import EquidistantFisheyeCamera
 from omnidev.sim.render import render_omni
 from omnidev.sim.scene import RoomScene
 from omnidev.viewspec import parse_view
+from tests.vm.frames import torn_runs
 from tests.vm.test_daemon import _replug_vivid, _unplug_vivid, _wait
 from tests.vm.vivid import start_loop, stop, write_raw
 
@@ -107,28 +108,6 @@ def _stream() -> dict[str, Any]:
     return st
 
 
-def _torn(frame: np.ndarray, offline: list[np.ndarray], min_run: int = 16) -> list[int] | None:
-    """The clip frames (in order) whose unwarped bytes ``frame`` is made of, run after
-    run of at least ``min_run`` bytes, when it is more than one: a buffer read while it
-    was being rewritten. v4l2loopback's buffers are shared by its writer and its
-    readers, and a reader that falls behind, as one does under TCG on a busy host, can
-    copy a buffer the writer is filling again (seen: bytes 0-47 of frame 10, then
-    frame 11 up to byte 27125, then frame 10). None if it is not that."""
-    flat = frame.reshape(-1)
-    eq = np.stack([flat == o.reshape(-1) for o in offline])  # clip frame x byte
-    runs: list[int] = []
-    i, n = 0, flat.size
-    while i < n:
-        # the clip frame that matches the longest run from byte i on
-        ends = [i + int(np.argmin(row[i:])) if not row[i:].all() else n for row in eq]
-        k = int(np.argmax(ends))
-        if ends[k] - i < min(min_run, n - i):
-            return None
-        runs.append(k)
-        i = ends[k]
-    return runs if len(set(runs)) > 1 else None
-
-
 def _read(tmp: Path, name: str, offline: list[np.ndarray]) -> dict[str, Any]:
     """K frames read from the loopback by v4l2-ctl, each matched to the clip; the
     daemon's capture and output rates over the same time (from its status) and the
@@ -157,7 +136,7 @@ def _read(tmp: Path, name: str, offline: list[np.ndarray]) -> dict[str, Any]:
     assert len(data) == K * W * H * 3, f"{len(data)} bytes"
     frames = np.frombuffer(data, np.uint8).reshape(K, H, W, 3)
     best = [max(cv2.PSNR(fr, o) for o in offline) for fr in frames]
-    torn = [_torn(fr, offline) for fr, b in zip(frames, best, strict=True) if b < 40.0]
+    torn = [torn_runs(fr, offline) for fr, b in zip(frames, best, strict=True) if b < 40.0]
     keep = os.environ.get("OMNIDEV_VM_OUT")
     for i in np.flatnonzero(np.array(best) < 40.0) if keep else []:
         j = int(np.argmax([cv2.PSNR(frames[i], o) for o in offline]))
@@ -184,9 +163,10 @@ def _read(tmp: Path, name: str, offline: list[np.ndarray]) -> dict[str, Any]:
 
 def _check(fig: dict[str, Any]) -> None:
     # Every frame read is the right frame at >= 40 dB (in practice identical), or a
-    # torn read of the loopback's shared buffers (:func:`_torn`): 0-3 % of the frames
-    # in runs here, more the busier the host. (A raw file output beside the loopback,
-    # to check every frame written, cost the emulated CPU 10 % of the frames.)
+    # torn read of the loopback's shared buffers (:func:`tests.vm.frames.torn_runs`):
+    # 0-3 % of the frames in runs here, more the busier the host. (A raw file output
+    # beside the loopback, to check every frame written, cost the emulated CPU 10 % of
+    # the frames.)
     assert len(fig["torn_frames"]) == fig["frames_below_40db"], fig
     assert fig["frames_below_40db"] <= 0.1 * fig["frames_read"], fig
     # The rates are reported, not asserted: under TCG on a shared host they follow the

@@ -10,9 +10,10 @@ so every frame differs) plays in a loop at RATE frames per second through
 the reader (v4l2-ctl for ``bgr24``, ffmpeg for ``yuyv``), started once the
 device shows its format, takes K frames. Each is matched to the clip's frames
 unwarped offline (the same decoder and maps through the Python API): they must be
-K consecutive frames of the loop, none missing or repeated (but for one repeat among
-the first three, a reader joining the stream), each at >= 40 dB
-PSNR (bgr24: byte for byte). The tests run one after another on the same device,
+K consecutive frames of the loop, none missing or repeated (but for frames among
+the first four, a reader joining the stream, that repeat the last or are torn:
+made of two frames' bytes), each at >= 40 dB PSNR (byte for byte in the device's
+format, in practice). The tests run one after another on the same device,
 so the second also shows that a new writer takes the device over from the last
 one (with exclusive_caps=1).
 """
@@ -26,6 +27,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -37,11 +39,12 @@ import omnidev
 from omnidev.fisheye.camera import MOUNTS, FisheyeCamera
 from omnidev.fisheye.camfile import write_camera_file
 from omnidev.fisheye.models import IdealFisheye
-from omnidev.outputs.pixels import yuyv_to_bgr
+from omnidev.outputs.pixels import bgr_to_yuyv, yuyv_to_bgr
 from omnidev.sim.fisheye import EquidistantFisheyeCamera
 from omnidev.sim.render import render_omni
 from omnidev.sim.scene import RoomScene
 from omnidev.viewspec import parse_view
+from tests.vm.frames import torn_runs
 
 NODE = "/dev/video10"
 CARD = "omnidev loopback"
@@ -49,7 +52,7 @@ SIZE = 320  # fisheye frames, px
 N = 36  # frames in the clip (the loop)
 K = 24  # frames each reader takes
 RATE = 6.0  # frames per second the source is paced at
-JOIN = 3  # the first frames a reader takes, where one repeat is the join's
+JOIN = 4  # the first frames a reader takes, where repeated or torn frames are the join
 W, H = 320, 240
 VIEW = f"perspective:{W}x{H},fov=100,tilt=35,pan=20"
 OMNIDEV = Path(sys.executable).parent / "omnidev"
@@ -132,35 +135,54 @@ def _stream(clip: Clip, fmt: str, reader: list[str], tmp: Path) -> tuple[float, 
     return wall, read.stdout + read.stderr
 
 
-def _check(frames: list[np.ndarray], offline: list[np.ndarray], key: str, figures: Any) -> None:
-    assert len(frames) == K, f"{len(frames)} of {K} frames came back"
-    # A reader that joins a running stream may be handed one of its first frames twice
-    # (v4l2loopback 0.12 in the VM: the frame it joined on, or in one CI run of ffmpeg the
-    # next one, read as 7, 8, 8, 9, ...); after the first JOIN frames, every frame once and
-    # in order.
-    repeats = 0
-    kept = frames[:1]
-    for i, f in enumerate(frames[1:], 1):
-        if i < JOIN and np.array_equal(f, kept[-1]):
-            repeats += 1
+def _check(
+    read: list[np.ndarray],
+    written: list[np.ndarray],
+    decode: Callable[[np.ndarray], np.ndarray],
+    offline: list[np.ndarray],
+    key: str,
+    figures: Any,
+) -> None:
+    """``read``: the reader's frames and ``written``: the clip's frames unwarped offline,
+    both in the device's pixel format (what the writer puts in the buffers, byte for byte);
+    ``decode`` turns that format into BGR to compare with ``offline`` where bytes differ."""
+    assert len(read) == K, f"{len(read)} of {K} frames came back"
+    indices: list[int] = []
+    exact, psnrs, join = 0, [], []
+    for i, f in enumerate(read):
+        same = [j for j, w in enumerate(written) if np.array_equal(f, w)]
+        if same:
+            exact += 1
+            index, psnr = same[0], 99.0
         else:
-            kept.append(f)
-    frames = kept
-    indices, psnrs = [], []
-    for f in frames:
-        scores = [cv2.PSNR(f, o) for o in offline]
-        indices.append(int(np.argmax(scores)))
-        psnrs.append(float(max(scores)))
+            scores = [cv2.PSNR(decode(f), o) for o in offline]
+            index, psnr = int(np.argmax(scores)), float(max(scores))
+        # A reader that joins a running stream may be handed its first frames more than
+        # once (v4l2loopback 0.12 in the VM, ffmpeg: 8, 8, 8, 9, ... in one run, 7, 8, 8,
+        # 9, ... in one CI run) or a buffer the writer was filling (one CI run of ffmpeg: a
+        # first frame at 26 dB, made of two clip frames' bytes). Such frames among the
+        # first JOIN are the join; after them, every frame once, in order, at >= 40 dB
+        # (the same frame's bytes in practice).
+        if i < JOIN:
+            if indices and index == indices[-1] and same:
+                join.append("repeat")
+                continue
+            if psnr < 40.0 and torn_runs(f, written) is not None:
+                join.append(f"torn {torn_runs(f, written)}")
+                continue
+        indices.append(index)
+        psnrs.append(psnr)
     steps = [(b - a) % N for a, b in itertools.pairwise(indices)]
     figures[key] = {
-        "frames_read": len(frames) + repeats,
-        "join_repeats": repeats,
+        "frames_read": len(read),
+        "exact_frames": exact,
+        "join": join,
         "first_index": indices[0],
         "steps_not_1": sum(s != 1 for s in steps),
         "psnr_db_min": round(min(min(psnrs), 99.0), 2),
         "psnr_db_median": round(min(float(np.median(psnrs)), 99.0), 2),
     }
-    assert repeats <= 1 and all(s == 1 for s in steps), f"lost or repeated: {repeats} {indices}"
+    assert all(s == 1 for s in steps), f"lost or repeated: {join} {indices}"
     assert min(psnrs) >= 40.0, psnrs
 
 
@@ -173,14 +195,14 @@ def test_bgr24_read_by_v4l2_ctl_byte_for_byte(clip: Clip, tmp_path: Path, vm_fig
     data = raw.read_bytes()
     assert len(data) == K * W * H * 3, f"{len(data)} bytes"
     frames = list(np.frombuffer(data, np.uint8).reshape(K, H, W, 3))
-    _check(frames, clip[2], "v4l2_output_bgr24_v4l2ctl", vm_figures)
+    _check(frames, clip[2], lambda f: f, clip[2], "v4l2_output_bgr24_v4l2ctl", vm_figures)
     rates = [float(x) for x in re.findall(r"([0-9.]+) fps", log)]
     vm_figures["v4l2_output_bgr24_v4l2ctl"].update(
         {"reader_fps_reports": rates, "reader_s": round(wall, 2), "source_fps": RATE}
     )
-    exact = sum(any(np.array_equal(f, o) for o in clip[2]) for f in frames)
-    vm_figures["v4l2_output_bgr24_v4l2ctl"]["byte_exact_frames"] = exact
-    assert exact == K
+    fig = vm_figures["v4l2_output_bgr24_v4l2ctl"]
+    torn = sum(j.startswith("torn") for j in fig["join"])
+    assert fig["exact_frames"] == K - torn, fig  # byte for byte, but a torn join
 
 
 def test_yuyv_read_by_ffmpeg(clip: Clip, tmp_path: Path, vm_figures) -> None:
@@ -197,7 +219,8 @@ def test_yuyv_read_by_ffmpeg(clip: Clip, tmp_path: Path, vm_figures) -> None:
     data = raw.read_bytes()
     assert len(data) == K * W * H * 2, f"{len(data)} bytes"
     packed = np.frombuffer(data, np.uint8).reshape(K, H, W * 2)
-    _check([yuyv_to_bgr(p) for p in packed], clip[2], "v4l2_output_yuyv_ffmpeg", vm_figures)
+    written = [bgr_to_yuyv(o) for o in clip[2]]
+    _check(list(packed), written, yuyv_to_bgr, clip[2], "v4l2_output_yuyv_ffmpeg", vm_figures)
 
 
 def test_udev_rule_gives_the_loopback_device_a_name_and_group_video() -> None:
