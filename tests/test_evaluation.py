@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 from pathlib import Path
@@ -167,3 +168,58 @@ def test_cli_replays_one_scene_and_writes_it(
         ]
     )
     assert rc == 0 and "truth points:" in capsys.readouterr().out
+
+
+def _children(pid: int) -> set[int]:
+    """The live child processes of ``pid`` (from /proc)."""
+    out: set[int] = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        with contextlib.suppress(OSError):
+            out |= {int(c) for c in (task / "children").read_text().split()}
+    return out
+
+
+def test_sigterm_ends_a_pooled_eval_and_its_workers() -> None:
+    """``omnidev eval --jobs 2`` told to stop mid-run (SIGTERM, as systemd or a CI timeout
+    does) exits 143 within seconds, leaves no worker behind and prints no traceback: the
+    workers take the kernel's default action, not the CLI's handler (with it, each worker
+    printed a KeyboardInterrupt-style traceback, and once one was left waiting for work
+    for ever with the parent in Pool.terminate)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    exe = Path(sys.executable).parent / "omnidev"
+    cmd = [str(exe), "eval", "screen", "--scenes", "8", "--seed", "1003", "--jobs", "2"]
+    cmd.append("--no-progress")
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        workers: set[int] = set()
+        while len(workers) < 2 and time.monotonic() < deadline and proc.poll() is None:
+            workers = _children(proc.pid)
+            time.sleep(0.05)
+        assert len(workers) == 2, f"no pool of 2 workers: {workers}, rc {proc.poll()}"
+        time.sleep(1.0)  # the workers are inside their first scenes
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        took = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    print(f"SIGTERM to exit: {took:.2f} s")
+    assert proc.returncode == 143, err.decode(errors="replace")[-2000:]
+    assert took < 30.0
+    for pid in workers:
+        assert not Path(f"/proc/{pid}").exists() or _zombie_or_gone(pid), f"worker {pid} left"
+    assert "Traceback" not in err.decode(errors="replace")
+
+
+def _zombie_or_gone(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1].startswith("Z")
+    except (OSError, IndexError):
+        return True
