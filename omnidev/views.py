@@ -329,13 +329,18 @@ def view_rotation(pan_deg: float, tilt_deg: float, roll_deg: float) -> FloatArra
     return np.stack([right_r, down_r, fwd], axis=1)
 
 
+MIN_FOV_DEG = 1e-4
+"""Smallest field of view of a :class:`Perspective`, degrees (a focal length of about
+570,000 times the view's width)."""
+
+
 @dataclass(frozen=True)
 class Perspective:
     """A virtual pinhole camera at the viewpoint.
 
     Args:
         width, height: output size in pixels (square pixels).
-        fov_deg: horizontal field of view, degrees (< 180).
+        fov_deg: horizontal field of view, degrees (:data:`MIN_FOV_DEG` .. < 180).
         pan_deg: azimuth of the optical axis, degrees.
         tilt_deg: elevation of the optical axis, degrees (+ looks up).
         roll_deg: rotation about the optical axis, degrees (+ turns the image
@@ -351,8 +356,12 @@ class Perspective:
 
     def __post_init__(self) -> None:
         _check_size(self.width, self.height)
-        if not 0 < self.fov_deg < 180:
-            raise ValueError(f"Perspective fov_deg must be in (0, 180), got {self.fov_deg}")
+        # a positive field of view so small that its focal length is not a number a map can
+        # hold (the fuzz sweep's 5e-324 made tan() 0 and the maps a ZeroDivisionError)
+        if not MIN_FOV_DEG <= self.fov_deg < 180:
+            raise ValueError(
+                f"Perspective fov_deg must be in [{MIN_FOV_DEG:g}, 180), got {self.fov_deg}"
+            )
 
     @property
     def finite(self) -> bool:

@@ -600,3 +600,15 @@ def config_key_cases(seeds: Seeds) -> Iterator[Case]:
                 {"in.toml": text.encode()},
                 expect=expect,
             )
+    # found by the random sweep (seed 11): a positive field of view so small that tan()
+    # is 0 reached the maps as a ZeroDivisionError; one too small for a finite map next
+    for fov in ("5e-324", "1e-300"):
+        ptz = 'view = "perspective:64x48,fov=60"'
+        assert streams.count(ptz) == 1
+        yield Case(
+            "daemon --check",
+            f"config stream view fov={fov}",
+            ["daemon", "--config", "in.toml", "--check"],
+            {"in.toml": streams.replace(ptz, ptz.replace("fov=60", f"fov={fov}")).encode()},
+            expect="refuse",
+        )
