@@ -316,12 +316,18 @@ def test_plan_ranges_at_keyframes_of_a_real_file(batch):
     ix = index_video(batch["src"] / "a.mp4", 12)
     assert ix.frames == FRAMES and ix.keyframes == FRAMES // 12
     assert [(r.start, r.stop) for r in ix.ranges] == [(0, 12), (12, 24), (24, 36), (36, 48)]
-    # a range ends at the first keyframe at least `target` frames after its start
+    # round(30 / 10) = 3 ranges, each cut at the keyframe nearest to its third
     assert [(r.start, r.stop) for r in plan_ranges(range(30), [0, 7, 14, 21, 28], 10)] == [
-        (0, 14),
-        (14, 28),
-        (28, 30),
+        (0, 7),
+        (7, 21),
+        (21, 30),
     ]
+    # as equal as the keyframes allow: 240 + 240, not 288 + 192 ("250 or more")
+    ranges = plan_ranges(range(480), range(0, 480, 48), 250)
+    assert [(r.start, r.stop) for r in ranges] == [(0, 240), (240, 480)]
+    # sparse keyframes give fewer ranges; none after the first frame, one range
+    assert len(plan_ranges(range(1000), [0, 900], 250)) == 2
+    assert [(r.start, r.stop) for r in plan_ranges(range(1000), [0], 250)] == [(0, 1000)]
 
 
 def test_bad_command_is_one_line(batch, capsys, tmp_path):

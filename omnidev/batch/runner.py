@@ -60,7 +60,7 @@ class Settings:
     """How a job unwarps and writes (the ``omnidev batch unwarp`` options).
 
     ``range_frames`` is the target length of a video range (frames; ranges
-    start at keyframes, so they are this long or longer), ``images_per_task``
+    start at keyframes and are as equal as those allow), ``images_per_task``
     the images of one task, ``task_threads`` the cores each task keeps busy
     (its codecs' and OpenCV's threads, and its pipeline stages working at once;
     one per Dask worker thread).

@@ -95,7 +95,7 @@ def register(sub: Any) -> None:
     u.add_argument("--fps", type=float, help="output frame rate (default: each input's)")
     u.add_argument(
         "--range-frames", type=int, default=250,
-        help="frames per video task (ranges start at keyframes: this many or more)",
+        help="about this many frames per video task (ranges start at keyframes)",
     )  # fmt: skip
     u.add_argument("--images-per-task", type=int, default=16, help="images per image task")
     u.add_argument(
