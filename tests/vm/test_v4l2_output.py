@@ -167,8 +167,9 @@ def _check(
             if indices and index == indices[-1] and same:
                 join.append("repeat")
                 continue
-            if psnr < 40.0 and torn_runs(f, written) is not None:
-                join.append(f"torn {torn_runs(f, written)}")
+            runs = torn_runs(f, written) if psnr < 40.0 else None
+            if runs is not None:
+                join.append(f"torn {runs}")
                 continue
         indices.append(index)
         psnrs.append(psnr)
