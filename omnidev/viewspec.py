@@ -69,7 +69,7 @@ lengths in the calibration's unit, e.g. m for the fixtures; angles in degrees):
                    or any plane: c=X:Y:Z centre, n=NX:NY:NZ normal (either sign),
                    w=WIDTH, h=HEIGHT its size (all required), roll=DEG (default 0)
   perspective:WxH  pinhole view
-                   fov=DEG     horizontal field of view, (0, 180) (default 90)
+                   fov=DEG     horizontal field of view, [0.0001, 180) (default 90)
                    pan=DEG, tilt=DEG, roll=DEG  view direction (default 0, 0, 0)
   top:WxH          view of a horizontal plane from above
                    x=EXTENT, y=EXTENT  plane size (required)
