@@ -100,7 +100,7 @@ def plan_ranges(pts: Sequence[int], keyframe_pts: Sequence[int], target: int) ->
     at the keyframe nearest to its share of equal parts (the one after the cut
     before it), so ranges are about ``target`` frames and as equal as the
     keyframes allow: 480 frames with keyframes every 48 at target 250 are two
-    ranges of 240, not 288 + 192 (one worker idle for 40 % of the job). Fewer
+    ranges of 240, not 288 + 192 (one of two workers idle for a third of the job). Fewer
     ranges when the keyframes are sparser than the parts; one range for all
     frames when there is no keyframe after the first frame.
 
@@ -117,8 +117,7 @@ def plan_ranges(pts: Sequence[int], keyframe_pts: Sequence[int], target: int) ->
     n = len(order)
     if n == 0:
         return []
-    keys = np.unique(np.asarray(keyframe_pts, dtype=np.int64))
-    positions = np.unique(np.searchsorted(order, keys))
+    positions = np.unique(np.searchsorted(order, np.asarray(keyframe_pts, dtype=np.int64)))
     positions = positions[(positions > 0) & (positions < n)]
     parts = max(1, round(n / target))
     cuts: list[int] = []
