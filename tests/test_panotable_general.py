@@ -15,7 +15,7 @@ from omnidev.calibfile import read_kind, write_storage
 from omnidev.camera import build_maps, project_maps
 from omnidev.errors import CalibrationError
 from omnidev.panotable.camfile import PanoTableCamera, load_table, save_table
-from omnidev.panotable.general import CANDIDATES, fit_general
+from omnidev.panotable.general import Terms, fit_general
 from omnidev.panotable.table import calibrate, calibrate_general, dissertation_misfit
 from omnidev.sim.imperfect import ImperfectCamera, PolyFisheyeCamera, rotation_vector
 from omnidev.sim.mirrors import SvpHyperbolicCamera
@@ -97,18 +97,51 @@ def test_aligned_camera_keeps_the_simple_order():
     assert truth_error(_BASE, g.mapping)[0] < 0.15
 
 
-def test_hyperbolic_mirror_buys_radial_degree_6_over_the_quartic():
-    """A hyperbolic mirror's r(rho) is not a quartic; enough landmarks show it beyond noise."""
+def test_hyperbolic_mirror_keeps_the_unified_radial_over_the_polynomials():
+    """A hyperbolic mirror's r(rho) is the unified model's, not a quartic: the fit keeps it."""
     cam = dataclasses.replace(_BASE, a=_BASE.a * 1.1, b=_BASE.b * 0.9)
     uv, xyz = landmarks(cam, 300, seed=11, noise=0.1)
     start = (cam.center[0] + 1.5, cam.center[1] - 1.0)
     g = fit_general(uv, xyz, start)
-    quartic = fit_general(uv, xyz, start, candidates=(CANDIDATES[0],))
-    rms6, max6 = truth_error(cam, g.mapping)
-    rms4, max4 = truth_error(cam, quartic.mapping)
-    print(f"kept {g.terms.describe()}: {rms6:.3f} / {max6:.3f} px; quartic {rms4:.3f} / {max4:.3f}")
-    assert g.terms.degree == 6 and not g.terms.tilt and g.terms.harmonics == 0
-    assert rms6 < 0.5 * rms4 and max6 < 0.5 * max4
+    errs = {}
+    for name, terms in (("quartic", Terms()), ("degree 6", Terms(degree=6))):
+        errs[name] = truth_error(cam, fit_general(uv, xyz, start, candidates=(terms,)).mapping)
+    rms, mx = truth_error(cam, g.mapping)
+    print(f"kept {g.terms.describe()}: {rms:.3f} / {mx:.3f} px; {errs}")
+    assert g.terms == Terms(unified=True, degree=-1)
+    assert rms < 0.5 * errs["quartic"][0] and mx < 0.5 * errs["quartic"][1]
+    assert rms < 0.03 and mx < 0.1
+
+
+def test_few_mirror_landmarks_extrapolate_with_the_unified_radial():
+    """32 landmarks over part of the band: the table still holds beyond them.
+
+    The landmarks' elevations stop 6 degrees short of each end of the mirror's
+    field (a table's range reaches 30 % of the span past them); a quartic or
+    sextic swings there, the two-parameter unified term does not.
+    """
+    cam = _BASE
+    lo, hi = cam.default_elevation_deg()
+    rng = np.random.default_rng(5)
+    uv, xyz = [], []
+    while len(uv) < 32:
+        th = rng.uniform(0, 2 * math.pi)
+        rho = math.radians(rng.uniform(lo + 6.0, hi - 6.0))
+        d = np.array([math.cos(rho) * math.cos(th), math.cos(rho) * math.sin(th), math.sin(rho)])
+        p = d * rng.uniform(1.0, 3.0)
+        q, ok = cam.project(p[None], finite=True)
+        if ok[0]:
+            uv.append(q[0])
+            xyz.append(p)
+    uv = np.array(uv) + rng.normal(0, 0.1, (32, 2))
+    xyz = np.array(xyz)
+    start = (cam.center[0] - 2.0, cam.center[1] + 1.0)
+    g = fit_general(uv, xyz, start)
+    rms, mx = truth_error(cam, g.mapping)  # over the whole field, both ends included
+    rms4, mx4 = truth_error(cam, fit_general(uv, xyz, start, candidates=(Terms(),)).mapping)
+    print(f"kept {g.terms.describe()}: {rms:.3f} / {mx:.3f} px; quartic {rms4:.3f} / {mx4:.3f}")
+    assert g.terms.unified
+    assert mx < 0.25 and mx < 0.5 * mx4
 
 
 def test_few_landmarks_do_not_overfit():
@@ -156,6 +189,27 @@ def test_cli_refuses_a_landmark_outside_the_image(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{csv} line 5: landmark (u, v) = (1.70536e+07, " in err
     assert f"lies outside the {w}x{h} image" in err
+
+
+def test_cli_general_table_of_a_mirror_reports_its_orders(tmp_path, capsys):
+    from omnidev.cli.main import main
+
+    uv, xyz = landmarks(_BASE, 60, seed=8, noise=0.1)
+    csv = tmp_path / "lm.csv"
+    rows = [",".join(f"{c:.6f}" for c in (*p, *q)) for p, q in zip(uv, xyz, strict=True)]
+    csv.write_text("u,v,X,Y,Z\n" + "\n".join(rows) + "\n")
+    w, h = _BASE.image_size
+    out = tmp_path / "c.yml"
+    rc = main(["calibrate", "pano-table", str(csv), "--model", "general", "--mirror-center",
+               "0,0,0", "--image-center", f"{_BASE.center[0] + 2},{_BASE.center[1] - 1}",
+               "--image-size", f"{w}x{h}", "-o", str(out)])  # fmt: skip
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert "held-out RMS(px)" in text and "kept: center, unified radial" in text
+    assert "radial: " in text and "cos(rho) / (" in text
+    t = load_table(out)
+    assert t.radial_base[0] != 0.0
+    assert truth_error(_BASE, t.mapping)[1] < 0.15
 
 
 def test_refusal_names_a_wrong_mirror_center():
@@ -250,6 +304,29 @@ def test_fast_maps_equal_the_point_route(lookup, tilted, general_table):
         np.testing.assert_array_equal(fast.valid, slow.valid)
         assert np.max(np.abs(fast.map_x - slow.map_x)[fast.valid], initial=0) < 2e-3
         assert np.max(np.abs(fast.map_y - slow.map_y)[fast.valid], initial=0) < 2e-3
+
+
+def test_unified_radial_table_round_trips_and_its_fast_maps_match(tmp_path):
+    """A mirror's table with the unified radial term: its file keeps the term, maps agree."""
+    uv, xyz = landmarks(_BASE, 100, seed=6, noise=0.1)
+    cal = calibrate_general(uv, xyz, np.zeros(3), _BASE.center, _BASE.image_size)
+    t = cal.table
+    assert cal.fit.terms.unified and t.radial_base[0] != 0.0
+    p = tmp_path / "mirror.yml"
+    save_table(p, cal)
+    back = load_table(p)
+    assert back.radial_base == t.radial_base and back.method == "general"
+    np.testing.assert_allclose(back.table, t.table, atol=1e-3)
+    assert truth_error(_BASE, back.mapping)[1] < 0.1
+    for lookup in ("bilinear", "analytic"):
+        cam = PanoTableCamera(back, lookup)
+        for view in (Panorama(720, 180), Perspective(160, 120, 90, 40, -30)):
+            fast = build_maps(cam, view)
+            slow = project_maps(cam, view)
+            np.testing.assert_array_equal(fast.valid, slow.valid)
+            assert fast.valid.mean() > 0.5
+            assert np.max(np.abs(fast.map_x - slow.map_x)[fast.valid], initial=0) < 2e-3
+            assert np.max(np.abs(fast.map_y - slow.map_y)[fast.valid], initial=0) < 2e-3
 
 
 VIEWS = {  # what the upward-looking fisheye of general_table sees

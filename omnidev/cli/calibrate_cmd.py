@@ -271,6 +271,11 @@ def _report_general(calib: GeneralCalibration, rows: tuple[int, ...]) -> None:
         f"{m.keystone[1]:.3g}) 1/px, azimuth phi = {m.azimuth_sign:+d} theta "
         f"{math.degrees(m.azimuth_offset):+.3f} deg"
     )
+    if m.radial_base[0] != 0.0:
+        print(
+            f"radial: {m.radial_base[0]:.6g} cos(rho) / ({m.radial_base[1]:.6g} + sin(rho)) px"
+            + (" + a0..: " + " ".join(f"{c:.6g}" for c in m.coeffs) if np.any(m.coeffs) else "")
+        )
 
 
 # ---------------------------------------------------------------- calibrate screen (ch. 5)

@@ -6,7 +6,8 @@ File: cv2.FileStorage (``.yml`` or ``.yml.gz``) with ``kind: pano-table``.
   the table, a few hundred bytes: the mapping's parameters (``radial_coeffs``,
   ``image_center``, ``azimuth_sign``, ``azimuth_offset_deg`` and, for the
   generalized table, ``aspect``, ``keystone``, ``tilt_rad``, ``harmonics``,
-  ``harmonic_rho_norm``), the table geometry (``M``, ``N``, ``rho_start_deg``,
+  ``harmonic_rho_norm`` and ``radial_base``: (gamma, c) of a unified-model
+  radial term, absent when there is none), the table geometry (``M``, ``N``, ``rho_start_deg``,
   ``rho_end_deg``, ``cutoff_radius``, image size) and the fit's report. The
   table is rebuilt on load (Algorithm 2). A ``table`` node (N x M, 2 channels,
   absolute pixels) may be added (``store_table=True``) for a table filled by
@@ -85,6 +86,8 @@ def save_table(
         nodes["tilt_rad"] = np.array(m.tilt, np.float64).reshape(1, 2)
         nodes["tilt_deg"] = m.tilt_deg
         nodes["harmonic_rho_norm"] = np.array(m.rho_norm, np.float64).reshape(1, 2)
+        if m.radial_base[0] != 0.0:
+            nodes["radial_base"] = np.array(m.radial_base, np.float64).reshape(1, 2)
         if m.harmonics.size:
             nodes["harmonics"] = m.harmonics.reshape(-1, 4).astype(np.float64)
             nodes["harmonics_shape"] = np.array(m.harmonics.shape[:2], np.float64).reshape(1, 2)
@@ -149,6 +152,11 @@ def load_table(path: Path) -> PanoTable:
                 v = _opt_mat(fs, path, key, 2)
                 if v is not None:
                     extra[name] = (float(v[0]), float(v[1]))
+            v = _opt_mat(fs, path, "radial_base", 2)
+            if v is not None:
+                if not np.all(np.isfinite(v)):
+                    raise CalibrationError(f"{path}: radial_base must be finite")
+                extra["radial_base"] = (float(v[0]), float(v[1]))
             v = _opt_mat(fs, path, "harmonic_rho_norm", 2)
             if v is not None:
                 if not v[1] > 0:

@@ -11,7 +11,10 @@ the landmarks:
 - the tilt of the camera axis against the world vertical: a rotation ``tilt``
   = (wx, wy) rad (Rodrigues vector, no z part: a turn about the axis is phi0);
 - a keystone (g1, g2) in 1/px: the perspective of a lens tilted against its mirror;
-- the radial function r(rho') of degree ``len(coeffs) - 1`` (4 = eq. 4.2) plus
+- the radial function r(rho') of degree ``len(coeffs) - 1`` (4 = eq. 4.2), or
+  the unified (sphere) model's ``gamma cos(rho') / (c + sin(rho'))`` (exact for
+  an SVP hyperbolic mirror, two parameters, which keeps its shape outside the
+  landmarks' elevations where a polynomial swings), plus
   an azimuth-dependent part: K harmonics in theta' whose coefficients are
   polynomials of degree D in the normalized elevation t = (rho' - mid) / half,
   for the radius (px) and for the image angle (rad).
@@ -24,7 +27,8 @@ table describes the camera and the tilt describes its mount.
 
 The mapping from a table-frame direction (theta', rho') to a pixel::
 
-    r   = sum_i a_i rho'^i + sum_k sum_i t^i (Rc_ki cos k theta' + Rs_ki sin k theta')
+    r   = sum_i a_i rho'^i + gamma cos rho' / (c + sin rho')
+          + sum_k sum_i t^i (Rc_ki cos k theta' + Rs_ki sin k theta')
     phi = s theta' + phi0  + sum_k sum_i t^i (Pc_ki cos k theta' + Ps_ki sin k theta')
     x, y = r cos phi, r sin phi;  w = 1 + g1 x + g2 y
     u = u0 + x / w;  v = v0 + aspect * y / w
@@ -89,6 +93,9 @@ class PanoMapping:
         harmonics: (K, D + 1, 4) float64: for harmonic k + 1 and power i of t,
             (Rc, Rs) px and (Pc, Ps) rad; K = 0 for none.
         rho_norm: (mid, half) rad of t = (rho' - mid) / half.
+        radial_base: (gamma px, c) of the unified model's term
+            ``gamma cos(rho') / (c + sin(rho'))`` added to the polynomial;
+            gamma = 0 for none.
     """
 
     coeffs: FloatArray
@@ -100,6 +107,17 @@ class PanoMapping:
     tilt: tuple[float, float] = (0.0, 0.0)
     harmonics: FloatArray = field(default_factory=lambda: np.zeros((0, 1, 4)))
     rho_norm: tuple[float, float] = (0.0, 1.0)
+    radial_base: tuple[float, float] = (0.0, 0.0)
+
+    def radial(self, rho: FloatArray) -> FloatArray:
+        """The azimuth-independent radius r(rho') px of table-frame elevations rho' (rad)."""
+        rho = np.asarray(rho, np.float64)
+        r = np.polynomial.polynomial.polyval(rho, np.asarray(self.coeffs, np.float64))
+        gamma, c = self.radial_base
+        if gamma != 0.0:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = r + gamma * np.cos(rho) / (c + np.sin(rho))
+        return np.asarray(r, np.float64)
 
     @property
     def is_dissertation(self) -> bool:
@@ -110,6 +128,7 @@ class PanoMapping:
             and self.tilt == (0.0, 0.0)
             and (self.harmonics.size == 0 or not np.any(self.harmonics))
             and len(self.coeffs) == 5
+            and self.radial_base[0] == 0.0
         )
 
     @property
@@ -121,7 +140,7 @@ class PanoMapping:
         """Ideal radius r (px) and image angle phi (rad) of table-frame angles."""
         theta = np.asarray(theta, np.float64)
         rho = np.asarray(rho, np.float64)
-        r = np.polynomial.polynomial.polyval(rho, np.asarray(self.coeffs, np.float64))
+        r = self.radial(rho)
         phi = self.azimuth_sign * theta + self.azimuth_offset
         h = self.harmonics
         if h.size and np.any(h):
@@ -168,7 +187,7 @@ class PanoMapping:
         tangential = h is not None and bool(np.any(h[:, :, 2:]))
         if not tangential:
             cphi, sphi = np.cos(phi_col), np.sin(phi_col)
-        r_row = np.polynomial.polynomial.polyval(rho, np.asarray(self.coeffs, np.float64))
+        r_row = self.radial(rho)
         mid, half = self.rho_norm
         t_row = (rho - mid) / half
         g1, g2 = self.keystone
@@ -229,9 +248,10 @@ class Terms:
     aspect: bool = False
     tilt: bool = False
     keystone: bool = False
-    degree: int = 4  # radial polynomial degree
+    degree: int = 4  # radial polynomial degree; -1 for none (with ``unified``)
     harmonics: int = 0  # K
     harmonic_degree: int = 0  # D
+    unified: bool = False  # the unified model's gamma cos(rho') / (c + sin(rho')) term
 
     def describe(self) -> str:
         parts = []
@@ -243,7 +263,10 @@ class Terms:
             parts.append("tilt")
         if self.keystone:
             parts.append("keystone")
-        parts.append(f"radial degree {self.degree}")
+        if self.unified:
+            parts.append("unified radial")
+        if self.degree >= 0:
+            parts.append(f"radial degree {self.degree}")
         if self.harmonics:
             parts.append(f"harmonics 1..{self.harmonics} x elevation degree {self.harmonic_degree}")
         return ", ".join(parts)
@@ -251,6 +274,7 @@ class Terms:
     def n_params(self) -> int:
         return (
             (self.degree + 1)
+            + 2 * self.unified
             + 1
             + 2 * self.center
             + self.aspect
@@ -261,6 +285,9 @@ class Terms:
 
 
 CANDIDATES: tuple[Terms, ...] = (
+    # exact for an SVP hyperbolic mirror with two parameters: keeps its shape beyond the
+    # landmarks' elevations, where a quartic or sextic from 32 landmarks swings (0.5-2 px)
+    Terms(unified=True, degree=-1),
     Terms(),
     Terms(degree=6),  # a hyperbolic mirror's r(rho) is not a quartic: 0.04-0.08 px RMS off
     Terms(aspect=True, tilt=True),
@@ -274,6 +301,7 @@ CANDIDATES: tuple[Terms, ...] = (
 )
 """The nested model orders tried, simplest first."""
 
+MIN_LANDMARKS = 8  # fewer cannot also hold out a fold's landmarks that say anything
 KEYSTONE_SCALE = 1e-6  # parameter units of the keystone: 1e-6 / px
 RIDGE_PX = 30.0  # a harmonic coefficient of this size costs as much as 1 px of one residual
 MAX_LOG_ASPECT = 5.0  # |log aspect| the fit may reach (aspect 0.0067 .. 148; real ones are ~1)
@@ -374,8 +402,12 @@ class _Problem:
             tilt, i = (float(q[i]), float(q[i + 1])), i + 2
         keystone = (0.0, 0.0)
         if t.keystone:
-            keystone = (float(q[i]) * KEYSTONE_SCALE, float(q[i + 1]) * KEYSTONE_SCALE)
+            keystone, i = (float(q[i]) * KEYSTONE_SCALE, float(q[i + 1]) * KEYSTONE_SCALE), i + 2
         return center, aspect, tilt, keystone
+
+    def base_c(self, q: FloatArray) -> float:
+        """The unified term's c (the last outer parameter), 0 without one."""
+        return float(q[-1]) if self.terms.unified else 0.0
 
     def pack_outer(self, m: PanoMapping) -> FloatArray:
         t = self.terms
@@ -388,7 +420,28 @@ class _Problem:
             q += list(m.tilt)
         if t.keystone:
             q += [m.keystone[0] / KEYSTONE_SCALE, m.keystone[1] / KEYSTONE_SCALE]
+        if t.unified:
+            q.append(m.radial_base[1] if m.radial_base[0] != 0.0 else self.initial_c(m))
         return np.array(q, np.float64)
+
+    def initial_c(self, m: PanoMapping) -> float:
+        """The unified term's c that best fits the radii about ``m``'s center (1-D search).
+
+        The pole sin(rho') = -c is kept outside the landmarks' elevations.
+        """
+        _, rho = table_angles(self.dirs, m.tilt)
+        r_obs = m.ideal_radius(self.uv[:, 0], self.uv[:, 1])
+        sn = np.sin(rho)
+        P = np.vander((rho - self.mid) / self.half, self.terms.degree + 1, increasing=True)
+        steps = np.exp(np.linspace(math.log(1e-3), math.log(100.0), 161))
+        best, best_c = math.inf, 1.0 + float(np.max(-sn))
+        for c in np.concatenate([float(np.max(-sn)) + steps, float(np.min(-sn)) - steps]):
+            A = np.concatenate([P, (np.cos(rho) / (c + sn))[:, None]], 1)
+            x, *_ = np.linalg.lstsq(A, r_obs, rcond=None)
+            cost = float(np.sum((A @ x - r_obs) ** 2))
+            if cost < best:
+                best, best_c = cost, float(c)
+        return best_c
 
     def solve(
         self, q: FloatArray, want_mapping: bool = False
@@ -407,6 +460,11 @@ class _Problem:
         phi_obs = np.arctan2(y, x)
         tt = (rho - self.mid) / self.half
         P = np.vander(tt, t.degree + 1, increasing=True)
+        c_base = self.base_c(q)
+        if t.unified:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                P = np.concatenate([P, (np.cos(rho) / (c_base + np.sin(rho)))[:, None]], 1)
+        npoly = t.degree + 1
         H = np.vander(tt, t.harmonic_degree + 1, increasing=True)
         cols = []
         for k in range(1, t.harmonics + 1):
@@ -448,8 +506,11 @@ class _Problem:
             harm[k, :, 1] = sol_r[P.shape[1] + base + nd : P.shape[1] + base + 2 * nd]
             harm[k, :, 2] = sol_a[1 + base : 1 + base + nd]
             harm[k, :, 3] = sol_a[1 + base + nd : 1 + base + 2 * nd]
+        coeffs = _poly_in_t_to_rho(sol_r[:npoly], self.mid, self.half) if npoly else np.zeros(2)
+        if coeffs.size < 2:  # a file holds at least a0, a1
+            coeffs = np.concatenate([coeffs, np.zeros(2 - coeffs.size)])
         m = PanoMapping(
-            _poly_in_t_to_rho(sol_r[: P.shape[1]], self.mid, self.half),
+            coeffs,
             center,
             self.s,
             float(c0 + sol_a[0]),
@@ -458,6 +519,7 @@ class _Problem:
             tilt,
             harm if t.harmonics else np.zeros((0, 1, 4)),
             (self.mid, self.half),
+            (float(sol_r[npoly]), c_base) if t.unified else (0.0, 0.0),
         )
         return m, out
 
@@ -575,8 +637,8 @@ def fit_general(
     lo, hi = float(np.min(rho)), float(np.max(rho))
     mid, half = 0.5 * (lo + hi), max(0.5 * (hi - lo), 1e-3)
     usable = [c for c in candidates if c.n_params() <= n]  # at most half the 2n equations
-    if not usable:
-        need = candidates[0].n_params()
+    if not usable or n < MIN_LANDMARKS:
+        need = max(MIN_LANDMARKS, min(c.n_params() for c in candidates))
         raise CalibrationError(
             f"{n} landmarks are too few for the generalized table (it needs at least {need}); "
             "add landmarks (omnidev landmarks board collects hundreds) or use --model dissertation"
@@ -621,9 +683,9 @@ def fit_general(
         scores.append(score)
         if score.heldout_rms_px < best_so_far * (1 - 0.5 * tolerance):
             worse = 0
-        elif len(scores) < 2 or replace(terms, degree=4) != replace(
-            scores[-2].terms, degree=4
-        ):  # a radial degree alone says nothing about the terms after it
+        elif len(scores) < 2 or replace(terms, degree=4, unified=False) != replace(
+            scores[-2].terms, degree=4, unified=False
+        ):  # a radial function alone says nothing about the terms after it
             worse += 1
         if worse >= 2:  # two larger orders in a row bought nothing: stop
             break
@@ -737,7 +799,9 @@ def _center_shift(
     before = float(np.sqrt(np.mean(np.sum((mapping.project_world(offsets) - uv) ** 2, 1))))
     scale = float(np.median(np.linalg.norm(offsets, axis=1)))
     mid, half = mapping.rho_norm
-    terms = Terms(aspect=True, tilt=True, degree=len(mapping.coeffs) - 1)
+    unified = mapping.radial_base[0] != 0.0
+    degree = -1 if unified and not np.any(mapping.coeffs) else len(mapping.coeffs) - 1
+    terms = Terms(aspect=True, tilt=True, degree=degree, unified=unified)
     for it in range(6):
         if it:
             mapping = _fit_one(

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -168,7 +168,7 @@ class PanoTable:
         azimuth_sign, azimuth_offset: s and phi0 (rad) of phi = s theta + phi0.
         cutoff_radius: px; pixels nearer the center are the camera's own
             reflection and are not used (0 = none).
-        aspect, keystone, tilt, harmonics, rho_norm: the generalized terms of
+        aspect, keystone, tilt, harmonics, rho_norm, radial_base: the generalized terms of
             :class:`omnidev.panotable.general.Mapping` (neutral by default: the
             dissertation's table). With a tilt the table is indexed by the
             camera's own (table-frame) angles and views are turned into it.
@@ -188,6 +188,7 @@ class PanoTable:
     tilt: tuple[float, float] = (0.0, 0.0)
     harmonics: FloatArray | None = None
     rho_norm: tuple[float, float] = (0.0, 1.0)
+    radial_base: tuple[float, float] = (0.0, 0.0)
     _table: NDArray[np.float32] | None = field(default=None, repr=False, compare=False)
     _stored: bool = field(default=False, repr=False, compare=False)
 
@@ -228,6 +229,7 @@ class PanoTable:
             mapping.tilt,
             None if h.size == 0 else np.asarray(h, np.float64),
             mapping.rho_norm,
+            mapping.radial_base,
         )
 
     @property
@@ -244,6 +246,7 @@ class PanoTable:
             self.tilt,
             h,
             self.rho_norm,
+            self.radial_base,
         )
 
     @property
@@ -378,8 +381,19 @@ def _wrap(out: NDArray[np.float32]) -> None:
     out[n] = 2 * out[n - 1] - out[n - 2]
 
 
+RadialFn = Callable[[FloatArray], FloatArray]
+
+
+def _radial_fn(coeffs: FloatArray | RadialFn) -> RadialFn:
+    """r(rho) of polynomial coefficients, or the function itself."""
+    if callable(coeffs):
+        return coeffs
+    c = np.asarray(coeffs, np.float64)
+    return lambda rho: radial(c, rho)
+
+
 def default_rho_range(
-    coeffs: FloatArray,
+    coeffs: FloatArray | RadialFn,
     rho_landmarks: FloatArray,
     image_center: tuple[float, float],
     image_size: tuple[int, int],
@@ -408,7 +422,8 @@ def default_rho_range(
     w, h = image_size
     r_lim = math.hypot(max(u0, w - 1 - u0), max(v0, h - 1 - v0)) if r_max is None else r_max
     grid = np.linspace(lo, hi, 2001)
-    r = radial(coeffs, grid)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = _radial_fn(coeffs)(grid)
     dr = np.gradient(r, grid)
     mid = int(np.argmin(np.abs(grid - 0.5 * (np.min(rho_landmarks) + np.max(rho_landmarks)))))
     increasing = dr[mid] > 0
@@ -426,14 +441,16 @@ def default_rho_range(
     return float(grid[a]), float(grid[b])
 
 
-def default_table_size(coeffs: FloatArray, rho_range: tuple[float, float]) -> tuple[int, int]:
+def default_table_size(
+    coeffs: FloatArray | RadialFn, rho_range: tuple[float, float]
+) -> tuple[int, int]:
     """Default (M, N): about one entry per pixel along the outer ring and along the radius.
 
     M = 2 pi r_max rounded up to a multiple of 8 (at least 360);
     N = |f_r(rho_e) - f_r(rho_s)| + 1 (at least 64).
     """
     grid = np.linspace(rho_range[0], rho_range[1], 512)
-    r = radial(coeffs, grid)
+    r = _radial_fn(coeffs)(grid)
     r_max = float(np.max(np.abs(r)))
     M = max(360, math.ceil(TWO_PI * r_max / 8.0) * 8)
     N = max(64, math.ceil(abs(float(r[-1] - r[0]))) + 1)
@@ -602,14 +619,14 @@ def calibrate_general(
     u0, v0 = m.image_center
     r_lim = math.hypot(max(u0, w - 1 - u0), max(v0, h - 1 - v0) / m.aspect)
     rr = rho_range or default_rho_range(
-        m.coeffs,
+        m.radial,
         rho,
         m.image_center,
         image_size,
         r_min=cutoff_radius,
         r_max=disc_radius if disc_radius is not None else r_lim,
     )
-    M, N = table_size or default_table_size(m.coeffs, rr)
+    M, N = table_size or default_table_size(m.radial, rr)
     table = PanoTable.from_mapping(m, image_size, rr, M, N, cutoff_radius)
     return GeneralCalibration(table, fit, fit.residual_px, fit.heldout_px)
 
