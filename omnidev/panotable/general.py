@@ -291,6 +291,9 @@ CANDIDATES: tuple[Terms, ...] = (
     Terms(),
     Terms(degree=6),  # a hyperbolic mirror's r(rho) is not a quartic: 0.04-0.08 px RMS off
     Terms(aspect=True, tilt=True),
+    # after its polynomial twin: kept only when better beyond chance (a fisheye's r is not
+    # the unified one, and under 0.3 px noise the simplest-first rule alone could pick it)
+    Terms(aspect=True, tilt=True, unified=True, degree=-1),
     Terms(aspect=True, tilt=True, keystone=True),
     Terms(aspect=True, tilt=True, keystone=True, degree=6),
     Terms(aspect=True, tilt=True, keystone=True, degree=6, harmonics=1, harmonic_degree=1),
@@ -454,8 +457,9 @@ class _Problem:
         y = (self.uv[:, 1] - center[1]) / aspect
         g1, g2 = keystone
         if g1 != 0.0 or g2 != 0.0:
-            w = 1.0 - g1 * x - g2 * y
-            x, y = x / w, y / w
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                w = 1.0 - g1 * x - g2 * y  # a wild landmark (1e7 px) may overflow: 1e6 below
+                x, y = x / w, y / w
         r_obs = np.hypot(x, y)
         phi_obs = np.arctan2(y, x)
         tt = (rho - self.mid) / self.half
@@ -670,8 +674,9 @@ def fit_general(
             h[test] = np.hypot(*(fm.project_world(dirs[test]) - uv[test]).T)
         m = _fit_one(uv, dirs, terms, m, mid=mid, half=half, center_prior=prior)
         fits.append(m)
+        h = np.minimum(h, 1e150)  # squares stay finite (a wild landmark's 1e200 px); nan stays
         helds.append(h)
-        res = np.hypot(*(m.project_world(dirs) - uv).T)
+        res = np.minimum(np.hypot(*(m.project_world(dirs) - uv).T), 1e150)
         ok = np.isfinite(h)
         score = CandidateScore(
             terms,
