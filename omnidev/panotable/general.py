@@ -286,7 +286,8 @@ class Terms:
 
 CANDIDATES: tuple[Terms, ...] = (
     # exact for an SVP hyperbolic mirror with two parameters: keeps its shape beyond the
-    # landmarks' elevations, where a quartic or sextic from 32 landmarks swings (0.5-2 px)
+    # landmarks' elevations, where a quartic or sextic from 32 landmarks swung by up to
+    # 0.9-2.3 px at 0.1 px noise (docs/results.md)
     Terms(unified=True, degree=-1),
     Terms(),
     Terms(degree=6),  # a hyperbolic mirror's r(rho) is not a quartic: 0.04-0.08 px RMS off

@@ -411,7 +411,9 @@ def default_rho_range(
     then narrowed to where f_r stays monotonic and within [r_min, r_max] px
     (default: 0 and the distance from the image center to the farthest image
     corner; the mirror disc's radius when it is known): a 4th-degree
-    polynomial is not trusted far outside the data that fixed it.
+    polynomial is not trusted far outside the data that fixed it. ``coeffs``
+    are f_r's polynomial coefficients, or f_r itself (a generalized mapping's
+    ``radial``, which may hold the unified term).
     """
     if margin is None:
         margin = 0.1 if r_max is None else 0.3
