@@ -137,9 +137,10 @@ KEY_VALUES: tuple[tuple[str, bytes, Expect], ...] = (
 """What every number key of a calibration file is set to (NaN must be refused)."""
 
 
-INFORMATIONAL_KEYS = ("radial_rms_px", "reprojection_rms_px", "heldout_rms_px", "n")
-"""Keys a loader does not read (fit figures for people; ``n`` of a format-2 screen file):
-any value may be accepted there, as long as nothing crashes."""
+INFORMATIONAL_KEYS = ("radial_rms_px", "reprojection_rms_px", "heldout_rms_px", "n", "tilt_deg")
+"""Keys a loader does not read (fit figures for people; ``n`` of a format-2 screen file; a
+generalized pano table's ``tilt_deg``, the angle of the ``tilt_rad`` it reads): any value may
+be accepted there, as long as nothing crashes."""
 
 
 def key_variants(seed: bytes, skip: tuple[str, ...] = ("rows", "cols")) -> Iterator[Variant]:

@@ -47,6 +47,14 @@ def _pano_table(root: Path) -> None:
             "--force",
         ]  # fmt: skip
         assert main(argv) == 0
+    # the same exact landmarks of an SVP mirror keep the unified radial term (radial_base)
+    argv = [
+        "calibrate", "pano-table", str(FIXTURES / "omni_room" / "landmarks.csv"),
+        "--mirror-center", center, "--image-center", "322.9,317.4", "--image-size", "640x640",
+        "--model", "general", "--table-size", "48x24", "-o", str(root / "cam_unified.yml"),
+        "--force",
+    ]  # fmt: skip
+    assert main(argv) == 0
 
 
 def _pano_table_more(root: Path) -> None:
