@@ -22,14 +22,15 @@ from omnidev.sim.mirrors import SvpHyperbolicCamera
 from omnidev.views import Panorama, Perspective, Plane, TopView
 
 
-def landmarks(cam, n: int, seed: int, noise: float = 0.0, dist=(1.0, 3.0)):
-    """n landmarks in directions the camera sees, at random distances; pixels exact + noise."""
+def landmarks(cam, n: int, seed: int, noise: float = 0.0, dist=(1.0, 3.0), margin_deg=0.5):
+    """n landmarks in directions the camera sees, ``margin_deg`` inside both ends of its
+    elevations, at random distances; pixels exact + noise."""
     rng = np.random.default_rng(seed)
     lo, hi = cam.default_elevation_deg()
     uv, xyz = [], []
     while len(uv) < n:
         th = rng.uniform(0, 2 * math.pi)
-        rho = math.radians(rng.uniform(lo + 0.5, hi - 0.5))
+        rho = math.radians(rng.uniform(lo + margin_deg, hi - margin_deg))
         d = np.array([math.cos(rho) * math.cos(th), math.cos(rho) * math.sin(th), math.sin(rho)])
         p = d * rng.uniform(*dist)
         q, ok = cam.project(p[None], finite=True)
@@ -121,20 +122,7 @@ def test_few_mirror_landmarks_extrapolate_with_the_unified_radial():
     sextic swings there, the two-parameter unified term does not.
     """
     cam = _BASE
-    lo, hi = cam.default_elevation_deg()
-    rng = np.random.default_rng(5)
-    uv, xyz = [], []
-    while len(uv) < 32:
-        th = rng.uniform(0, 2 * math.pi)
-        rho = math.radians(rng.uniform(lo + 6.0, hi - 6.0))
-        d = np.array([math.cos(rho) * math.cos(th), math.cos(rho) * math.sin(th), math.sin(rho)])
-        p = d * rng.uniform(1.0, 3.0)
-        q, ok = cam.project(p[None], finite=True)
-        if ok[0]:
-            uv.append(q[0])
-            xyz.append(p)
-    uv = np.array(uv) + rng.normal(0, 0.1, (32, 2))
-    xyz = np.array(xyz)
+    uv, xyz = landmarks(cam, 32, seed=5, noise=0.1, margin_deg=6.0)
     start = (cam.center[0] - 2.0, cam.center[1] + 1.0)
     g = fit_general(uv, xyz, start)
     rms, mx = truth_error(cam, g.mapping)  # over the whole field, both ends included

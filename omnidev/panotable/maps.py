@@ -87,15 +87,7 @@ def angle_pixels(m: PanoMapping, ct: F32, st: F32, rho: F32) -> tuple[F32, F32, 
     in float64 (its coefficients are in powers of rho and may cancel), the rest
     in float32.
     """
-    rho64 = rho.astype(np.float64)
-    r64 = np.full(rho64.shape, float(m.coeffs[-1]))
-    for c in np.asarray(m.coeffs, np.float64)[-2::-1]:
-        r64 *= rho64
-        r64 += c
-    gamma, c_base = m.radial_base
-    if gamma != 0.0:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r64 += gamma * np.cos(rho64) / (c_base + np.sin(rho64))
+    r64 = m.radial(rho.astype(np.float64))  # float64: the coefficients may cancel
     r = np.asarray(r64, np.float32)
     s = np.float32(m.azimuth_sign)
     c0, s0 = np.float32(math.cos(m.azimuth_offset)), np.float32(math.sin(m.azimuth_offset))
