@@ -14,6 +14,7 @@ import omnidev
 from omnidev.calibfile import read_kind, write_storage
 from omnidev.camera import build_maps, project_maps
 from omnidev.errors import CalibrationError
+from omnidev.panotable import general
 from omnidev.panotable.camfile import PanoTableCamera, load_table, save_table
 from omnidev.panotable.general import Terms, fit_general
 from omnidev.panotable.table import calibrate, calibrate_general, dissertation_misfit
@@ -22,11 +23,22 @@ from omnidev.sim.mirrors import SvpHyperbolicCamera
 from omnidev.views import Panorama, Perspective, Plane, TopView
 
 
-def landmarks(cam, n: int, seed: int, noise: float = 0.0, dist=(1.0, 3.0), margin_deg=0.5):
+def landmarks(
+    cam,
+    n: int,
+    seed: int,
+    noise: float = 0.0,
+    dist=(1.0, 3.0),
+    margin_deg=0.5,
+    top_deg=90.0,
+    bottom_deg=-90.0,
+):
     """n landmarks in directions the camera sees, ``margin_deg`` inside both ends of its
-    elevations, at random distances; pixels exact + noise."""
+    elevations and none outside bottom_deg..top_deg, at random distances; pixels exact +
+    noise."""
     rng = np.random.default_rng(seed)
     lo, hi = cam.default_elevation_deg()
+    lo, hi = max(lo, bottom_deg - margin_deg), min(hi, top_deg + margin_deg)
     uv, xyz = [], []
     while len(uv) < n:
         th = rng.uniform(0, 2 * math.pi)
@@ -130,6 +142,57 @@ def test_few_mirror_landmarks_extrapolate_with_the_unified_radial():
     print(f"kept {g.terms.describe()}: {rms:.3f} / {mx:.3f} px; quartic {rms4:.3f} / {mx4:.3f}")
     assert g.terms.unified
     assert mx < 0.25 and mx < 0.5 * mx4
+
+
+def test_few_fisheye_landmarks_extrapolate_to_the_zenith_through_the_pole():
+    """32 landmarks stop 20 degrees short of a tilted fisheye's zenith: the radial
+    polynomial through r = 0 at the pole holds up there, a free quartic swings."""
+    uv, xyz = landmarks(TILTED, 32, seed=2, noise=0.1, top_deg=70.0)
+    start = (TILTED.center[0] + 2.0, TILTED.center[1] - 1.0)
+    g = fit_general(uv, xyz, start)
+    rms, mx = truth_error(TILTED, g.mapping)  # up to the zenith
+    free = fit_general(uv, xyz, start, candidates=general.ORDERS)
+    rms_f, mx_f = truth_error(TILTED, free.mapping)
+    print(f"kept {g.terms.describe()}: {rms:.3f} / {mx:.3f} px; free {rms_f:.3f} / {mx_f:.3f}")
+    assert g.terms.polar and not free.terms.polar
+    assert abs(g.mapping.radial(np.array([math.pi / 2]))[0]) < 1e-6
+    assert mx < 0.3 and mx < 0.5 * mx_f
+
+
+def test_table_reaches_below_high_landmarks_inside_the_image():
+    """Landmarks 30-83 degrees up a tilted fisheye: the table reaches on below them while
+    the radius stays inside the image's inscribed circle, so a panorama down to 5 degrees
+    is covered (the 30 % range of the landmarks' span alone left rows black)."""
+    uv, xyz = landmarks(TILTED, 32, seed=3, noise=0.1, bottom_deg=30.0)
+    cal = calibrate_general(uv, xyz, np.zeros(3), TILTED.center, TILTED.image_size)
+    m = cal.fit.mapping
+    _, rho = general.table_angles(xyz, m.tilt)
+    w, h = TILTED.image_size
+    u0, v0 = m.image_center
+    r_in = min(u0, w - 1 - u0, v0 / m.aspect, (h - 1 - v0) / m.aspect)
+    lo = cal.table.rho_range[0]
+    span = float(np.ptp(rho))
+    view = Panorama(720, 180, elevation_deg=(5.0, 60.0))
+    narrow = dataclasses.replace(cal.table, rho_range=(rho.min() - 0.3 * span, math.pi / 2))
+    got = build_maps(PanoTableCamera(cal.table), view).valid.mean()
+    before = build_maps(PanoTableCamera(narrow), view).valid.mean()
+    print(
+        f"range from {math.degrees(lo):.1f} deg (landmarks from {math.degrees(rho.min()):.1f}, "
+        f"30 %: {math.degrees(rho.min() - 0.3 * span):.1f}); covered {got:.4f} (30 %: {before:.4f})"
+    )
+    assert lo < rho.min() - 0.4 * span
+    assert m.radial(np.array([lo]))[0] <= r_in + 1e-6
+    assert got > 0.995 and before < 0.95
+
+
+def test_a_far_pole_leaves_the_radial_polynomial_free():
+    """A mirror's nadir far below the landmarks (0.8 of their span): no order through it."""
+    uv, xyz = landmarks(_BASE, 100, seed=3, noise=0.1)
+    lo = np.degrees(np.arcsin(xyz[:, 2] / np.linalg.norm(xyz, axis=1))).min()
+    hi = np.degrees(np.arcsin(xyz[:, 2] / np.linalg.norm(xyz, axis=1))).max()
+    g = fit_general(uv, xyz, _BASE.center)
+    assert (lo + 90) > general.POLAR_REACH * (hi - lo)
+    assert not any(s.terms.polar for s in g.scores)
 
 
 def test_few_landmarks_do_not_overfit():

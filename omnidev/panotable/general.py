@@ -11,7 +11,8 @@ the landmarks:
 - the tilt of the camera axis against the world vertical: a rotation ``tilt``
   = (wx, wy) rad (Rodrigues vector, no z part: a turn about the axis is phi0);
 - a keystone (g1, g2) in 1/px: the perspective of a lens tilted against its mirror;
-- the radial function r(rho') of degree ``len(coeffs) - 1`` (4 = eq. 4.2), or
+- the radial function r(rho') of degree ``len(coeffs) - 1`` (4 = eq. 4.2; fitted free
+  or as (rho' - pole) q(rho'), zero at the pole the image center sees), or
   the unified (sphere) model's ``gamma cos(rho') / (c + sin(rho'))`` (exact for
   an SVP hyperbolic mirror, two parameters, which keeps its shape outside the
   landmarks' elevations where a polynomial swings), plus
@@ -252,6 +253,7 @@ class Terms:
     harmonics: int = 0  # K
     harmonic_degree: int = 0  # D
     unified: bool = False  # the unified model's gamma cos(rho') / (c + sin(rho')) term
+    polar: bool = False  # the radial polynomial is 0 at the pole the image center sees
 
     def describe(self) -> str:
         parts = []
@@ -266,14 +268,16 @@ class Terms:
         if self.unified:
             parts.append("unified radial")
         if self.degree >= 0:
-            parts.append(f"radial degree {self.degree}")
+            parts.append(
+                f"radial degree {self.degree}" + (" through the pole" if self.polar else "")
+            )
         if self.harmonics:
             parts.append(f"harmonics 1..{self.harmonics} x elevation degree {self.harmonic_degree}")
         return ", ".join(parts)
 
     def n_params(self) -> int:
         return (
-            (self.degree + 1)
+            (self.degree + 1 - (self.polar and self.degree > 0))
             + 2 * self.unified
             + 1
             + 2 * self.center
@@ -284,7 +288,7 @@ class Terms:
         )
 
 
-CANDIDATES: tuple[Terms, ...] = (
+ORDERS: tuple[Terms, ...] = (
     # exact for an SVP hyperbolic mirror with two parameters: keeps its shape beyond the
     # landmarks' elevations, where a quartic or sextic from 32 landmarks swung by up to
     # 0.9-2.3 px at 0.1 px noise (docs/results.md)
@@ -303,8 +307,23 @@ CANDIDATES: tuple[Terms, ...] = (
     Terms(aspect=True, tilt=True, keystone=True, degree=6, harmonics=3, harmonic_degree=2),
     Terms(aspect=True, tilt=True, keystone=True, degree=6, harmonics=4, harmonic_degree=3),
 )
+"""The nested model orders, simplest first, each radial polynomial free."""
+
+# Each radial polynomial is tried first through r = 0 at the pole the image center sees, then
+# free (kept only when better): the table's elevation range reaches past the landmarks', and
+# toward a fisheye's zenith a free quartic or sextic from 32 landmarks ended up 1.7-11 dB off
+# in the top view; a real mirror's r(rho) (OCamCalib's KaidanOmni) is fitted better free.
+CANDIDATES: tuple[Terms, ...] = tuple(
+    t
+    for order in ORDERS
+    for t in ((replace(order, polar=True), order) if order.degree > 0 else (order,))
+)
 """The nested model orders tried, simplest first."""
 
+POLAR_REACH = 0.5
+"""Orders through the pole are tried when it lies within this fraction of the landmarks'
+elevation span of them (a fisheye's zenith: 0.1-0.4; OCamCalib's KaidanOmni mirror's nadir:
+0.8, where the constraint cost 0.1 px RMS on views left out)."""
 MIN_LANDMARKS = 8  # fewer cannot also hold out a fold's landmarks that say anything
 KEYSTONE_SCALE = 1e-6  # parameter units of the keystone: 1e-6 / px
 RIDGE_PX = 30.0  # a harmonic coefficient of this size costs as much as 1 px of one residual
@@ -388,6 +407,29 @@ class _Problem:
     half: float
     center0: tuple[float, float]
     center_prior: tuple[tuple[float, float], float] | None
+    pole: float = -0.5 * math.pi  # rad: the elevation the image center sees (Terms.polar)
+
+    @property
+    def polar(self) -> bool:
+        return self.terms.polar and self.terms.degree > 0
+
+    def radial_basis(self, rho: FloatArray) -> FloatArray:
+        """(n, k) columns of the radial polynomial: t^i, or (rho' - pole) t^i when polar."""
+        tt = (rho - self.mid) / self.half
+        if not self.polar:
+            return np.vander(tt, self.terms.degree + 1, increasing=True)
+        return np.vander(tt, self.terms.degree, increasing=True) * (rho - self.pole)[:, None]
+
+    def radial_coeffs(self, sol: FloatArray) -> FloatArray:
+        """Coefficients in rho' (rad) of the radial polynomial of :meth:`radial_basis` weights."""
+        if sol.size == 0:
+            return np.zeros(2)
+        c = _poly_in_t_to_rho(sol, self.mid, self.half)
+        if self.polar:
+            c = np.asarray(np.polynomial.polynomial.polymul(c, [-self.pole, 1.0]), np.float64)
+        if c.size < 2:  # a file holds at least a0, a1
+            c = np.concatenate([c, np.zeros(2 - c.size)])
+        return np.asarray(c, np.float64)
 
     def unpack_outer(
         self, q: FloatArray
@@ -436,7 +478,7 @@ class _Problem:
         _, rho = table_angles(self.dirs, m.tilt)
         r_obs = m.ideal_radius(self.uv[:, 0], self.uv[:, 1])
         sn = np.sin(rho)
-        P = np.vander((rho - self.mid) / self.half, self.terms.degree + 1, increasing=True)
+        P = self.radial_basis(rho)
         steps = np.exp(np.linspace(math.log(1e-3), math.log(100.0), 161))
         best, best_c = math.inf, 1.0 + float(np.max(-sn))
         for c in np.concatenate([float(np.max(-sn)) + steps, float(np.min(-sn)) - steps]):
@@ -464,12 +506,12 @@ class _Problem:
         r_obs = np.hypot(x, y)
         phi_obs = np.arctan2(y, x)
         tt = (rho - self.mid) / self.half
-        P = np.vander(tt, t.degree + 1, increasing=True)
+        P = self.radial_basis(rho)
+        npoly = P.shape[1]
         c_base = self.base_c(q)
         if t.unified:
             with np.errstate(divide="ignore", invalid="ignore"):
                 P = np.concatenate([P, (np.cos(rho) / (c_base + np.sin(rho)))[:, None]], 1)
-        npoly = t.degree + 1
         H = np.vander(tt, t.harmonic_degree + 1, increasing=True)
         cols = []
         for k in range(1, t.harmonics + 1):
@@ -511,11 +553,8 @@ class _Problem:
             harm[k, :, 1] = sol_r[P.shape[1] + base + nd : P.shape[1] + base + 2 * nd]
             harm[k, :, 2] = sol_a[1 + base : 1 + base + nd]
             harm[k, :, 3] = sol_a[1 + base + nd : 1 + base + 2 * nd]
-        coeffs = _poly_in_t_to_rho(sol_r[:npoly], self.mid, self.half) if npoly else np.zeros(2)
-        if coeffs.size < 2:  # a file holds at least a0, a1
-            coeffs = np.concatenate([coeffs, np.zeros(2 - coeffs.size)])
         m = PanoMapping(
-            coeffs,
+            self.radial_coeffs(sol_r[:npoly]),
             center,
             self.s,
             float(c0 + sol_a[0]),
@@ -538,10 +577,11 @@ def _fit_one(
     mid: float,
     half: float,
     center_prior: tuple[tuple[float, float], float] | None,
+    pole: float = -0.5 * math.pi,
 ) -> PanoMapping:
     """Variable projection: LM over center, aspect, tilt, keystone; the rest by least squares."""
     prob = _Problem(
-        uv, dirs, terms, start.azimuth_sign, mid, half, start.image_center, center_prior
+        uv, dirs, terms, start.azimuth_sign, mid, half, start.image_center, center_prior, pole
     )
     q = _lm(lambda q: prob.solve(q)[1], prob.pack_outer(start))
     m, _ = prob.solve(q, want_mapping=True)
@@ -620,7 +660,10 @@ def fit_general(
         dirs: (n, 3) landmark directions from O_m in the world frame (any length).
         image_center: starting image center (u0, v0) px (detected, or a guess).
         candidates: model orders, simplest first; each is tried only when it has
-            at most half as many parameters as there are landmark coordinates.
+            at most half as many parameters as there are landmark coordinates, and
+            an order through the pole (``Terms.polar``) only when the pole lies
+            within :data:`POLAR_REACH` of the landmarks' elevation span of them.
+            The harmonics' radial part is not held to 0 at the pole.
         groups: (n,) labels (e.g. the board of each corner); folds then leave out
             whole groups, so a board's corners do not vouch for each other.
         folds: number of cross-validation folds.
@@ -628,7 +671,8 @@ def fit_general(
             of the best one's is chosen, unless a later order is better on the
             same held-out landmarks beyond chance (its mean squared held-out
             residual lower by more than :data:`SIGNIFICANCE` standard errors of
-            the paired per-landmark difference).
+            the paired per-landmark difference). A free polynomial whose twin
+            through the pole was tried is kept only by the second rule.
         center_prior_px: the 1-sigma uncertainty of ``image_center`` when it was
             measured (a detected center); None lets the landmarks alone decide.
 
@@ -661,6 +705,12 @@ def fit_general(
     scores: list[CandidateScore] = []
     helds: list[FloatArray] = []
     m = _initial(uv, dirs, image_center)
+    # the image center sees the pole toward which the radius shrinks (a mirror's camera: the
+    # nadir; a fisheye looking up: the zenith)
+    r_lo, r_hi = m.radial(np.array([lo, hi]))
+    pole = 0.5 * math.pi if abs(r_hi) < abs(r_lo) else -0.5 * math.pi
+    if abs(pole - (hi if pole > 0 else lo)) > POLAR_REACH * (hi - lo):
+        usable = [c for c in usable if not c.polar]  # a pole that far off bends the fit
     worse = 0
     for terms in usable:
         h = np.full(n, np.nan)
@@ -669,11 +719,18 @@ def fit_general(
             if start is None or terms.n_params() > len(train):
                 continue
             fm = _fit_one(
-                uv[train], dirs[train], terms, start, mid=mid, half=half, center_prior=prior
+                uv[train],
+                dirs[train],
+                terms,
+                start,
+                mid=mid,
+                half=half,
+                center_prior=prior,
+                pole=pole,
             )
             fold_maps[f] = fm
             h[test] = np.hypot(*(fm.project_world(dirs[test]) - uv[test]).T)
-        m = _fit_one(uv, dirs, terms, m, mid=mid, half=half, center_prior=prior)
+        m = _fit_one(uv, dirs, terms, m, mid=mid, half=half, center_prior=prior, pole=pole)
         fits.append(m)
         h = np.minimum(h, 1e150)  # squares stay finite (a wild landmark's 1e200 px); nan stays
         helds.append(h)
@@ -689,18 +746,23 @@ def fit_general(
         scores.append(score)
         if score.heldout_rms_px < best_so_far * (1 - 0.5 * tolerance):
             worse = 0
-        elif len(scores) < 2 or replace(terms, degree=4, unified=False) != replace(
-            scores[-2].terms, degree=4, unified=False
+        elif len(scores) < 2 or replace(terms, degree=4, unified=False, polar=False) != replace(
+            scores[-2].terms, degree=4, unified=False, polar=False
         ):  # a radial function alone says nothing about the terms after it
             worse += 1
         if worse >= 2:  # two larger orders in a row bought nothing: stop
             break
     cv = np.array([s.heldout_rms_px for s in scores])
-    best = float(np.min(cv))
+    # a free twin of a polynomial through the pole fits the landmarks' own range better by
+    # its extra parameter; it is kept only when better beyond chance, not within the 5 %
+    primary = np.array([not (s.terms.degree > 0 and not s.terms.polar) for s in scores])
+    if not any(s.terms.polar for s in scores):
+        primary[:] = True
+    best = float(np.min(np.where(primary, cv, math.inf)))
     if not math.isfinite(best):
         chosen = 0
     else:
-        chosen = int(np.flatnonzero(cv <= best * (1 + tolerance) + 1e-9)[0])
+        chosen = int(np.flatnonzero(primary & (cv <= best * (1 + tolerance) + 1e-9))[0])
         for i in range(chosen + 1, len(scores)):
             if math.isfinite(cv[i]) and cv[i] < cv[chosen] and _better(helds[chosen], helds[i]):
                 chosen = i
