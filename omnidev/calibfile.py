@@ -27,6 +27,11 @@ from omnidev.inputfile import MAX_MAGNITUDE, check_nesting, read_bytes, read_gzi
 
 UNWARPERS = "omnidev.unwarpers"
 
+MAX_CALIBRATION_BYTES = 1 << 30
+"""Largest calibration file read, and what a ``.gz`` one may inflate to (1 GiB): a
+format-1 pano-table file stores its table entries, 67 MiB gzipped at 1920x1920 (the
+bench's), several times that at 3840; the 64 MiB limit of other text inputs refused them."""
+
 
 @contextmanager
 def open_storage(path: Path) -> Iterator[cv2.FileStorage]:
@@ -34,9 +39,9 @@ def open_storage(path: Path) -> Iterator[cv2.FileStorage]:
     path = Path(path)
     what = "calibration file"
     if path.name.lower().endswith(".gz"):
-        data = read_gzip(path, what, error=CalibrationError)
-    else:
-        data = read_bytes(path, what, error=CalibrationError)  # a regular file, not huge
+        data = read_gzip(path, what, error=CalibrationError, limit=MAX_CALIBRATION_BYTES)
+    else:  # a regular file, not huge
+        data = read_bytes(path, what, error=CalibrationError, limit=MAX_CALIBRATION_BYTES)
     nul = data.find(b"\0")
     if nul >= 0:  # cv2.FileStorage would stop reading there and take the rest as absent
         line = data.count(b"\n", 0, nul) + 1
