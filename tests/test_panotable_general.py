@@ -193,6 +193,21 @@ def test_table_reaches_below_high_landmarks_inside_the_image():
     assert got > 0.995 and before < 0.95
 
 
+def test_a_disc_measured_about_another_center_bounds_the_range_at_its_far_edge():
+    """A disc (rim, image circle) detected about a point 6 px from the fitted center (a
+    misaligned lens): the table reaches the disc's far edge from the fitted center, not its
+    radius about it (which cut one side of a misaligned mirror's panorama: 0.34 -> 2.5 dB)."""
+    uv, xyz = landmarks(TILTED, 60, seed=4, noise=0.1, bottom_deg=20.0)
+    c_disc = (TILTED.center[0] + 6.0, TILTED.center[1])
+    R = 400.0
+    cal = calibrate_general(uv, xyz, np.zeros(3), c_disc, TILTED.image_size, disc_radius=R)
+    m = cal.fit.mapping
+    shift = math.hypot(m.image_center[0] - c_disc[0], m.image_center[1] - c_disc[1])
+    r_end = float(m.radial(np.array([cal.table.rho_range[0]]))[0])
+    assert shift > 5.0
+    assert R + 0.9 * shift < r_end <= R + shift + 1e-6
+
+
 def test_a_far_pole_leaves_the_radial_polynomial_free():
     """A mirror's nadir farther below the landmarks than half their span: no order through
     it (an SVP mirror's r(rho) near its nadir is left to the unified term)."""

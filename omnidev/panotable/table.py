@@ -583,6 +583,8 @@ def calibrate_general(
             cutoff_radius, disc_radius: as :func:`calibrate` (elevations and the
             cut-off radius are of the camera's own, table frame).
         image_center: where the fit starts (detected, or a guess); it is fitted.
+            ``disc_radius`` and ``cutoff_radius`` are taken as measured about it: the
+            range is bounded by the disc's far edge from the fitted center.
         groups: (n,) labels such as the board of each landmark: cross-validation
             then leaves out whole groups.
         center_prior_px: 1-sigma of ``image_center`` when it was measured.
@@ -620,16 +622,20 @@ def calibrate_general(
     w, h = image_size
     u0, v0 = m.image_center
     r_lim = math.hypot(max(u0, w - 1 - u0), max(v0, h - 1 - v0) / m.aspect)
+    # the disc and cut-off circle were measured about image_center; from the fitted center
+    # (a misaligned lens: a few px off) their far edges lie that much farther
+    shift = math.hypot(u0 - image_center[0], v0 - image_center[1])
     rr = rho_range or default_rho_range(
         m.radial,
         rho,
         m.image_center,
         image_size,
-        r_min=cutoff_radius,
-        r_max=disc_radius if disc_radius is not None else r_lim,
+        r_min=max(0.0, cutoff_radius - shift),
+        r_max=disc_radius + shift if disc_radius is not None else r_lim,
     )
     if rho_range is None:
-        rr = _reach_inside(m, rho, image_size, rr, cutoff_radius, disc_radius)
+        inner = None if disc_radius is None else max(0.0, disc_radius - shift)
+        rr = _reach_inside(m, rho, image_size, rr, cutoff_radius + shift, inner)
     M, N = table_size or default_table_size(m.radial, rr)
     table = PanoTable.from_mapping(m, image_size, rr, M, N, cutoff_radius)
     return GeneralCalibration(table, fit, fit.residual_px, fit.heldout_px)
