@@ -634,8 +634,8 @@ def calibrate_general(
         r_max=disc_radius + shift if disc_radius is not None else r_lim,
     )
     if rho_range is None:
-        inner = None if disc_radius is None else max(0.0, disc_radius - shift)
-        rr = _reach_inside(m, rho, image_size, rr, cutoff_radius + shift, inner)
+        near_disc = None if disc_radius is None else max(0.0, disc_radius - shift)
+        rr = _reach_inside(m, rho, image_size, rr, cutoff_radius + shift, near_disc)
     M, N = table_size or default_table_size(m.radial, rr)
     table = PanoTable.from_mapping(m, image_size, rr, M, N, cutoff_radius)
     return GeneralCalibration(table, fit, fit.residual_px, fit.heldout_px)
@@ -652,11 +652,12 @@ def _reach_inside(
     rho: FloatArray,
     image_size: tuple[int, int],
     rr: tuple[float, float],
-    cutoff_radius: float,
-    disc_radius: float | None,
+    r_min: float,
+    near_disc: float | None,
 ) -> tuple[float, float]:
     """``rr`` widened to :data:`INSIDE_RANGE_MARGIN` of the landmarks' span where the radius
-    stays inside the image's inscribed circle (and the disc).
+    (px, about the fitted center) stays above ``r_min`` and inside the image's inscribed
+    circle and ``near_disc`` (the measured disc's near edge; None when not measured).
 
     32 landmarks of a tilted fisheye 21-83 degrees up (table frame) left 3-8 % of its
     panorama and perspective view below a 30 % range: 27 and 32 dB below the exact maps
@@ -666,8 +667,8 @@ def _reach_inside(
     w, h = image_size
     u0, v0 = m.image_center
     r_in = min(u0, w - 1 - u0, v0 / m.aspect, (h - 1 - v0) / m.aspect)
-    if disc_radius is not None:
-        r_in = min(r_in, disc_radius)
+    if near_disc is not None:
+        r_in = min(r_in, near_disc)
     try:
         lo, hi = default_rho_range(
             m.radial,
@@ -675,7 +676,7 @@ def _reach_inside(
             m.image_center,
             image_size,
             margin=INSIDE_RANGE_MARGIN,
-            r_min=cutoff_radius,
+            r_min=r_min,
             r_max=r_in,
         )
     except CalibrationError:  # the landmarks themselves reach past the inscribed circle
