@@ -107,6 +107,58 @@ def _median(x: NDArray[Any]) -> float:
     return (int(part[n // 2 - 1]) + int(part[n // 2])) / 2
 
 
+def _fit_beam(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    obs: NDArray[np.float64],
+    room: NDArray[np.float64],
+    cens: NDArray[np.bool_],
+    start: NDArray[np.float64],
+    iterations: int = 30,
+) -> tuple[float, float] | None:
+    """Levenberg-Marquardt fit of a round Gaussian beam ``b + A exp(-d^2 / 2 s^2)`` to
+    the rise ``obs`` (linear light) at pixels (x, y); where ``cens`` (the channel
+    clipped) the rise is only known to be >= ``room``. Parameters (u, v, ln A, ln s, b)
+    from ``start``; returns the centre (u, v), or None if it does not converge inside
+    its bounds (A 1e-3..100, s 0.3 px .. 4 x its start + 8 px, |b| <= 0.5)."""
+    lo = np.array([-np.inf, -np.inf, math.log(1e-3), math.log(0.3), -0.5])
+    hi = np.array([np.inf, np.inf, math.log(100.0), math.log(4 * math.exp(start[3]) + 8), 0.5])
+
+    def resid(t: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        dx, dy = x - t[0], y - t[1]
+        d2 = dx * dx + dy * dy
+        s2 = math.exp(2.0 * t[3])
+        g = math.exp(t[2]) * np.exp(-d2 / (2.0 * s2))
+        p = t[4] + g
+        res = np.where(cens, np.maximum(0.0, room - p), obs - p)
+        jac = np.column_stack([g * dx / s2, g * dy / s2, g, g * d2 / s2, np.ones_like(g)])
+        jac[cens & (p >= room)] = 0.0
+        return res, jac
+
+    th = np.clip(start, lo, hi)
+    res, jac = resid(th)
+    cost, lam = float(res @ res), 1e-2
+    for _ in range(iterations):
+        h = jac.T @ jac
+        try:
+            step = np.linalg.solve(h + lam * np.diag(np.diag(h) + 1e-9), jac.T @ res)
+        except np.linalg.LinAlgError:
+            return None
+        cand = th + step
+        if np.all(np.isfinite(cand)) and np.all(cand >= lo) and np.all(cand <= hi):
+            r2, j2 = resid(cand)
+            c2 = float(r2 @ r2)
+            if c2 < cost:
+                th, res, jac, cost, lam = cand, r2, j2, c2, lam * 0.3
+                if float(np.abs(step[:2]).max()) < 1e-3:
+                    break
+                continue
+        lam *= 10.0
+        if lam > 1e6:
+            break
+    return float(th[0]), float(th[1])
+
+
 class ColourSpotDetector:
     """Finds the laser spot in successive BGR frames of one camera (module docstring).
 
@@ -182,10 +234,13 @@ class ColourSpotDetector:
         max_darker: float = 0.2,
         min_cross: float = 0.04,
         busy_events: int = 2,
-        position: str = "centroid",
+        position: str = "beam",
         new_margin: int = _NEW_MARGIN,
         confirm: int = 1,
         busy_confirm: int = 2,
+        min_rise: float = 15.0,
+        fringe_ratio: float = 1.15,
+        hold_spot: bool = True,
     ) -> None:
         if colour not in COLOURS:
             raise ValueError(f"colour must be one of {', '.join(COLOURS)}, got {colour!r}")
@@ -224,7 +279,7 @@ class ColourSpotDetector:
         self.track_px = track_px
         self.busy_gain = busy_gain
         self.bands = bands
-        if not 0.0 <= max_darker <= 1.0 or position not in ("fit", "centroid"):
+        if not 0.0 <= max_darker <= 1.0 or position not in ("fit", "centroid", "beam"):
             raise ValueError(
                 f"need 0 <= max_darker <= 1 and position 'fit' or 'centroid', got {max_darker},"
                 f" {position!r}"
@@ -244,10 +299,18 @@ class ColourSpotDetector:
         if not 1 <= busy_confirm <= 10:
             raise ValueError(f"need busy_confirm 1..10, got {busy_confirm}")
         self.busy_confirm = busy_confirm
+        if not 0.0 <= min_rise < 255.0 or fringe_ratio < 0.0:
+            raise ValueError(
+                f"need 0 <= min_rise < 255 and fringe_ratio >= 0, got {min_rise}, {fringe_ratio}"
+            )
+        self.min_rise = min_rise
+        self.fringe_ratio = fringe_ratio
+        self.hold_spot = hold_spot
         self._need = confirm  # frames the current track needs before it is reported
         self._run = 0  # frames in a row with a spot, each near the one before
         self.half = math.ceil(math.sqrt(max_area / math.pi)) + 12  # window half size, px
         self._k3 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
+        self._k5 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
         self._k7 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
         self._k11 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))
         self._k19 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (19, 19))
@@ -441,6 +504,15 @@ class ColourSpotDetector:
         full = cv2.resize(sub, None, fx=k, fy=k, interpolation=cv2.INTER_NEAREST)
         full = np.ascontiguousarray(full[: r1 - r0, : c1 - c0])
         grown = cv2.dilate(full, self._kgrow)
+        if self.hold_spot and self._last is not None:
+            # the last spot's window never takes pixels where the laser channel rose:
+            # content changing next to a spot would copy the spot into the model
+            v0, v1, u0, u1 = self._window(self._last.u, self._last.v, h, w)
+            a0, a1, b0, b1 = max(v0, r0), min(v1, r1), max(u0, c0), min(u1, c1)
+            if a0 < a1 and b0 < b1:
+                for c in self.channels:
+                    up = cv2.subtract(image[a0:a1, b0:b1, c], bg[a0:a1, b0:b1, c])
+                    grown[a0 - r0 : a1 - r0, b0 - c0 : b1 - c0][up >= self.rise] = 0
         self._prefix = (r0, c0, bg[r0:r1, c0:c1].copy())
         cv2.copyTo(image[r0:r1, c0:c1], grown, bg[r0:r1, c0:c1])
         self._model_changed(slice(r0, r1), slice(c0, c1))
@@ -629,6 +701,11 @@ class ColourSpotDetector:
             self._adds_light(win, model, sel) and self._cross_rise(win, model, sel, c)
         ):
             return None, ibox
+        if model is not None and self.min_rise > 0:
+            disc = cv2.dilate(sel.view(np.uint8), self._k5).view(bool)
+            up = win[:, :, c][disc].astype(np.int16) - model[:, :, c][disc]
+            if float(up.mean()) < self.min_rise:
+                return None, ibox
         gain = self._colour(win, None if bg is None or busy else bg[v0:v1, u0:u1], sel, c)
         if gain is None:
             return None, ibox
@@ -639,6 +716,10 @@ class ColourSpotDetector:
         tot = float(wgt.sum())
         area = int(np.count_nonzero(sel))
         pu, pv = float((wgt * xs).sum()) / tot, float((wgt * ys).sum()) / tot
+        if model is not None and self.position == "beam":
+            bc = self._beam_centre(win, model, sel, c, pu, pv)
+            if bc is not None:
+                pu, pv = bc
         if model is not None and self.position == "fit":
             fit = self._fit_centre(win, model, sel, c)
             reach = 0.25 * (box[3] - box[2] + box[1] - box[0]) + 1.0
@@ -702,6 +783,40 @@ class ColourSpotDetector:
         rise = _LIN[now] - _LIN[was]
         srt = np.sort(np.where(room < self.min_cross, self.min_cross, rise))
         return bool(srt[srt.size // 2 :].mean() >= self.min_cross)
+
+    def _beam_centre(
+        self,
+        win: NDArray[np.uint8],
+        model: NDArray[np.uint8],
+        sel: NDArray[np.bool_],
+        c: int,
+        pu: float,
+        pv: float,
+    ) -> tuple[float, float] | None:
+        """The beam's centre (window px) from a round Gaussian fitted to the laser
+        channel's rise over the model in linear light, ``b + A exp(-d^2 / 2 s^2)``, where
+        clipped pixels say only that the beam filled the room the content left there
+        (censored), so neither the content under the spot nor where it clips bends the
+        centre. Levenberg-Marquardt from the blob's centroid (pu, pv). None if the fit
+        fails or moves further than the blob's radius."""
+        area = int(np.count_nonzero(sel))
+        r = max(1.5, math.sqrt(area / math.pi))
+        size = 2 * math.ceil(1.5 * r + 4) + 1
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+        grown = cv2.dilate(sel.view(np.uint8), ker).view(bool)
+        ys, xs = np.nonzero(grown)
+        now = win[:, :, c][grown]
+        was = _LIN[model[:, :, c][grown]]
+        cens = now >= self.saturated
+        room = 1.0 - was
+        peak = 2.0 * float(np.median(room[cens])) if cens.any() else float((_LIN[now] - was).max())
+        start = np.array([pu, pv, math.log(max(peak, 1e-3)), math.log(r), 0.0])
+        fit = _fit_beam(
+            xs.astype(np.float64), ys.astype(np.float64), _LIN[now] - was, room, cens, start
+        )
+        if fit is None or math.hypot(fit[0] - pu, fit[1] - pv) > r + 1.0:
+            return None
+        return fit
 
     def _fit_centre(
         self,
@@ -788,7 +903,11 @@ class ColourSpotDetector:
         gain = self._ring_gain(win, sel, c)
         if gain is not None:
             return gain
-        if fringe <= self.fringe:
+        if fringe <= self.fringe and (
+            self.fringe_ratio <= 0
+            or ref is None
+            or self._rise_ratio(win, ref, sel, c) >= self.fringe_ratio
+        ):
             return self.halo * (1.0 + (self.fringe - fringe))
         if ref is not None and self._rise_ratio(win, ref, sel, c) >= self.colour_ratio:
             return self.halo

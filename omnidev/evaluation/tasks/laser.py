@@ -66,7 +66,8 @@ FILTERS: dict[str, tuple[float, float, float, float | None]] = {
 # the colour detector's options the task passes on (unset: -1 or "")
 _DETECTOR_OPTIONS = (
     "saturated", "halo", "colour_ratio", "track_px", "busy_gain", "max_darker", "min_cross",
-    "busy_events", "position", "new_margin", "confirm", "busy_confirm",
+    "busy_events", "position", "new_margin", "confirm", "busy_confirm", "min_rise",
+    "fringe_ratio", "hold_spot",
 )  # fmt: skip
 _COUNTS = ("spot", "hit", "far", "missed", "off", "false", "hidden", "refused")
 
@@ -81,6 +82,8 @@ def make_detector(
             for k in _DETECTOR_OPTIONS
             if options.get(k) is not None and options[k] not in (-1, "")
         }
+        if "hold_spot" in kw:
+            kw["hold_spot"] = bool(kw["hold_spot"])
         return ColourSpotDetector(colour, mask, **kw)
     if method == "white-core":
         return SpotDetector(colour, mask)
@@ -322,6 +325,9 @@ TASK = Task(
         "new_margin": -1,
         "confirm": -1,
         "busy_confirm": -1,
+        "min_rise": -1.0,
+        "fringe_ratio": -1.0,
+        "hold_spot": -1,
         "position": "",
         "cache": "",
     },
