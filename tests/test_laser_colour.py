@@ -20,7 +20,7 @@ from omnidev.daemon.config import parse_config
 from omnidev.errors import TrackerError
 from omnidev.evaluation.framework import load_task
 from omnidev.filters import OneEuroFilter
-from omnidev.laser.colour_spot import ColourSpotDetector
+from omnidev.laser.colour_spot import ColourSpotDetector, _fit_beam
 from omnidev.sim.screen import Spot, render, screen_rig
 from omnidev.sim.screen_content import slide
 from omnidev.tracking import open_tracker
@@ -132,6 +132,36 @@ def test_busy_confirm_withholds_a_track_starting_in_a_busy_region() -> None:
         ColourSpotDetector("red", busy_confirm=0)
 
 
+def test_hold_spot_keeps_a_spot_out_of_the_model() -> None:
+    """A spot held still over content that flickers darker every other frame (a video
+    under it): where the frame got darker the model takes the frame's pixels, and
+    without ``hold_spot`` the spot's own pixels with them, so it is lost for good; with
+    it (the default) the spot is found on every frame after the first flicker."""
+    rig = screen_rig((640, 480), 0.1)
+    content = slide("dark", 1920, 1080, 0.0)
+    frames = [render(rig, content, frame_seed=0)]
+    for i in range(12):
+        s = Spot(600.0 + 0.5 * i, 500.0, "red", 6.0, 1.0)
+        frames.append(render(rig, content, spot=s, frame_seed=i + 1))
+    probe = ColourSpotDetector("red")
+    probe.detect(frames[0])
+    first = probe.detect(frames[1])
+    assert first is not None
+    u, v = round(first.u), round(first.v)
+    for f in frames[2::2]:  # the 60 x 60 px around the spot darker, the spot as it was
+        box = f[v - 30 : v + 30, u - 30 : u + 30]
+        spot = (box.astype(np.int16) - frames[0][v - 30 : v + 30, u - 30 : u + 30]).max(axis=2) > 20
+        dark = box // 2
+        dark[spot] = box[spot]
+        box[:] = dark
+    found = {}
+    for hold in (True, False):
+        det = ColourSpotDetector("red", hold_spot=hold)
+        found[hold] = [det.detect(f) is not None for f in frames]
+    assert found[True][3:] == [True] * 10  # measured: every frame from the 4th on
+    assert not any(found[False][3:])  # measured: none
+
+
 def test_static_content_never_fires() -> None:
     det = ColourSpotDetector("any")
     assert all(det.detect(f) is None for f in _dark_rig_frames(10, spot=False))
@@ -146,9 +176,37 @@ def test_bad_arguments() -> None:
         ColourSpotDetector("red", confirm=0)
     with pytest.raises(ValueError, match="new_margin"):
         ColourSpotDetector("red", new_margin=0)
+    with pytest.raises(ValueError, match="min_rise"):
+        ColourSpotDetector("red", min_rise=-1.0)
+    with pytest.raises(ValueError, match="fringe_ratio"):
+        ColourSpotDetector("red", fringe_ratio=-0.5)
+    with pytest.raises(ValueError, match="peak_margin 0..255"):
+        ColourSpotDetector("red", peak_margin=256)
     det = ColourSpotDetector("red", np.ones((10, 10), bool))
     with pytest.raises(ValueError, match="mask is 10x10, image 20x10"):
         det.detect(np.zeros((10, 20, 3), np.uint8))
+
+
+def test_beam_fit_is_not_bent_by_the_content_under_the_spot() -> None:
+    """A beam half on a dark page, half on one that leaves its channel little room
+    below clipping: the clipped blob's centroid is pulled toward the bright side, the
+    censored Gaussian fit (position "beam") is not. Synthetic, exact truth."""
+    yy, xx = np.mgrid[0:41, 0:41].astype(np.float64)
+    cu, cv_, amp, sig = 20.3, 19.6, 4.0, 3.0
+    content = np.where(xx > 20.0, 0.8, 0.05)  # linear light of the page, laser channel
+    room = 1.0 - content
+    beam = amp * np.exp(-((xx - cu) ** 2 + (yy - cv_) ** 2) / (2 * sig**2))
+    obs = np.minimum(room, beam)
+    cens = beam >= room
+    blob_u = float(xx[cens].mean())
+    assert blob_u - cu > 1.0  # the clipped blob reaches further over the bright page
+    start = np.array([blob_u, float(yy[cens].mean()), math.log(2.0), math.log(3.0), 0.0])
+    fit = _fit_beam(xx.ravel(), yy.ravel(), obs.ravel(), room.ravel(), cens.ravel(), start)
+    assert fit is not None
+    assert math.hypot(fit[0] - cu, fit[1] - cv_) < 0.01
+    noisy = obs + np.random.default_rng(3).normal(0.0, 0.01, obs.shape)
+    fit = _fit_beam(xx.ravel(), yy.ravel(), noisy.ravel(), room.ravel(), cens.ravel(), start)
+    assert fit is not None and math.hypot(fit[0] - cu, fit[1] - cv_) < 0.1
 
 
 def test_one_euro_max_gap_restarts() -> None:
@@ -184,6 +242,10 @@ def test_tracker_method_options(tmp_path: Path) -> None:
         ({"busy_frames": 3}, "it is an option of method 'colour'"),
         ({"method": "colour", "saturated": "high"}, "saturated must be a whole number"),
         ({"method": "colour", "halo": True}, "halo must be a number"),
+        ({"method": "colour", "hold_spot": "maybe"}, "hold_spot must be true or false"),
+        ({"method": "colour", "peak_margin": 2.5}, "peak_margin must be a whole number"),
+        # a good flag passes the option checks: the missing calibration is what stops it
+        ({"method": "colour", "hold_spot": "false"}, "screen calibration .* does not exist"),
     ]
     for options, text in cases:
         with pytest.raises(TrackerError, match=text) as info:

@@ -21,10 +21,13 @@ from omnidev.sim.screen import laser_video, screen_rig
 from tests.laser_colour_reference import ColourSpotDetector as Reference
 
 # the fast path with the options that did not exist in the reference at their "off"
-# values (the speed work changed no result; busy_confirm, min_rise, fringe_ratio,
-# hold_spot and position "beam" came after it)
+# values, and its defaults where they changed (the speed work changed no result;
+# busy_confirm, min_rise, fringe_ratio, hold_spot, peak_margin, position "beam" and
+# new_margin 20 came after it)
 AS_REFERENCE: dict[str, object] = {
     "busy_confirm": 1,
+    "peak_margin": 255,
+    "new_margin": 30,
     "min_rise": 0.0,
     "fringe_ratio": 0.0,
     "hold_spot": False,

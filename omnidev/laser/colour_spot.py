@@ -19,13 +19,21 @@ So a spot must be all of:
    channel by ``halo`` (a clipped white or yellow patch has no such ring; a spot
    on a white page has one, its laser channel clipping where the others do not);
 4. **new**: at least ``min_new`` of its pixels were not clipped in the model of
-   the displayed content (static red text and icons, however bright, never fire);
-5. **inside the screen** (``mask``, from the calibration).
+   the displayed content (static red text and icons, however bright, never fire),
+   and the blob with the 2 px around it rose over the model by ``min_rise`` grey
+   levels on average (a beam lifts its whole disc; noise crossing the clipping level
+   on a bright page does not);
+5. **as bright as the camera goes**: its laser-channel peak within ``peak_margin``
+   of the highest level the laser channel has shown on the screen so far (a beam
+   drives its channel to the top; content just crossing ``saturated`` does not);
+6. **inside the screen** (``mask``, from the calibration).
 
 The content model is the camera image itself, refreshed one row band of ``bands``
 per frame, except where the laser channel newly clipped (a spot never enters it);
 where the frame is darker than the model by ``rise`` (a laser only adds light) the
-model is out of date and takes the frame at once.
+model is out of date and takes the frame at once, except (``hold_spot``) the pixels
+of the last spot's window where the laser channel rose (content changing beside a
+spot would otherwise copy the spot into the model, and it would be lost).
 
 Where the model cannot tell static from new, a blob is taken only within
 ``track_px`` of the previous frame's spot:
@@ -44,8 +52,12 @@ calls; the slide-change and busy tests use every ``step``-th pixel (automatic:
 4); each candidate blob is measured in a small window.
 
 Coordinates: image pixels, u right, v down, the centre of the top-left pixel at
-(0, 0). The position is the centroid of the clipped blob with a soft edge: pixels
-``soft`` grey levels below ``saturated`` weigh 0, clipped ones 1.
+(0, 0). The position (``position`` "beam", the default) is the centre of a round
+Gaussian fitted to the laser channel's rise over the model in linear light, with
+clipped pixels censored (they say only that the beam filled the room the content
+left below clipping), so the content under the spot does not bend it; "centroid" is
+the clipped blob's centroid with a soft edge (pixels ``soft`` grey levels below
+``saturated`` weigh 0, clipped ones 1), also the fallback where the fit fails.
 """
 
 from __future__ import annotations
@@ -62,10 +74,11 @@ from omnidev.laser.spot import COLOURS, LaserSpot
 _CHANNEL = {"red": 2, "green": 1}
 _BLOCK = 16  # full-resolution px: the busy map's block size
 # grey levels below ``saturated`` the model must be for a pixel to be new (default of
-# ``new_margin``; tuning scenes 1000-1039: 30 found 51.2 % with 34 false spots, 20
-# 53.7 % with 31; held-out 600000-600041: 30 49.1 % with 48 false, 20 50.7 % with 79,
-# so it stays 30)
-_NEW_MARGIN = 30
+# ``new_margin``). With 2026-12-02's tests, 30 (tuning 1000-1039: 51.2 %, 34 false;
+# held-out 600000-600041: 49.1 %, 48 false) beat 20 (53.7 %, 31; 50.7 %, 79). With
+# min_rise, fringe_ratio and peak_margin (2026-12-05), 20 found 1344 of 2029 spot frames
+# with 77 false spots on 2423 spot-off frames (tuning 1000-1159), 30 1273 with 76.
+_NEW_MARGIN = 20
 _POPCOUNT = np.array([bin(i).count("1") for i in range(256)], np.uint8)
 _LIN = (np.arange(256) / 255.0) ** 2.2  # grey level -> linear light (gamma 2.2)
 
@@ -124,20 +137,31 @@ def _fit_beam(
     lo = np.array([-np.inf, -np.inf, math.log(1e-3), math.log(0.3), -0.5])
     hi = np.array([np.inf, np.inf, math.log(100.0), math.log(4 * math.exp(start[3]) + 8), 0.5])
 
+    n = x.size
+    cidx = np.flatnonzero(cens)
+
     def resid(t: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         dx, dy = x - t[0], y - t[1]
         d2 = dx * dx + dy * dy
-        s2 = math.exp(2.0 * t[3])
-        g = math.exp(t[2]) * np.exp(-d2 / (2.0 * s2))
-        p = t[4] + g
-        res = np.where(cens, np.maximum(0.0, room - p), obs - p)
-        jac = np.column_stack([g * dx / s2, g * dy / s2, g, g * d2 / s2, np.ones_like(g)])
-        jac[cens & (p >= room)] = 0.0
-        return res, jac
+        inv = math.exp(-2.0 * t[3])
+        g = np.exp(d2 * (-0.5 * inv) + t[2])
+        p = g + t[4]
+        res = obs - p
+        over = p[cidx] >= room[cidx]
+        res[cidx] = np.where(over, 0.0, room[cidx] - p[cidx])
+        gi = g * inv
+        j = np.empty((n, 5))
+        j[:, 0] = gi * dx
+        j[:, 1] = gi * dy
+        j[:, 2] = g
+        j[:, 3] = gi * d2
+        j[:, 4] = 1.0
+        j[cidx[over]] = 0.0
+        return res, j
 
     th = np.clip(start, lo, hi)
     res, jac = resid(th)
-    cost, lam = float(res @ res), 1e-2
+    cost, lam = float(res @ res), 1e-3
     for _ in range(iterations):
         h = jac.T @ jac
         try:
@@ -150,7 +174,7 @@ def _fit_beam(
             c2 = float(r2 @ r2)
             if c2 < cost:
                 th, res, jac, cost, lam = cand, r2, j2, c2, lam * 0.3
-                if float(np.abs(step[:2]).max()) < 1e-3:
+                if float(np.abs(step[:2]).max()) < 0.02:
                     break
                 continue
         lam *= 10.0
@@ -204,9 +228,19 @@ class ColourSpotDetector:
             moving there: videos, animations); the larger of the two applies there
             (tuning scenes 600000-600041: 2 cut false spots 47 -> 38 of 604 spot-off
             frames at the same 250 of 511 hits; 1: off).
-        position: "centroid" (the soft-edged centroid of the clipped blob) or "fit" (the
-            beam centre from a Gaussian fit to the laser channel's rise over the model on
-            the unclipped pixels around the blob; the centroid where it does not fit).
+        position: "beam" (the censored Gaussian fit of the module docstring),
+            "centroid" (the soft-edged centroid of the clipped blob) or "fit" (a
+            log-quadratic fit to the rise on the unclipped pixels around the blob); the
+            centroid where a fit fails.
+        min_rise: with the model: the smallest mean rise (grey levels) of the laser
+            channel over the blob and the 2 px around it. 0: off.
+        fringe_ratio: with the model: a blob accepted by its fringe also needs the
+            halo's rise ratio (as ``colour_ratio``) of at least this (white look-alikes
+            that do not clip every channel). 0: off.
+        hold_spot: the last spot's window keeps its model where the laser channel rose
+            when darker content nearby refreshes the model.
+        peak_margin: grey levels the blob's laser-channel peak may lie below the
+            highest level seen on the screen (255: off).
     """
 
     def __init__(
@@ -241,6 +275,7 @@ class ColourSpotDetector:
         min_rise: float = 15.0,
         fringe_ratio: float = 1.15,
         hold_spot: bool = True,
+        peak_margin: int = 3,
     ) -> None:
         if colour not in COLOURS:
             raise ValueError(f"colour must be one of {', '.join(COLOURS)}, got {colour!r}")
@@ -306,6 +341,10 @@ class ColourSpotDetector:
         self.min_rise = min_rise
         self.fringe_ratio = fringe_ratio
         self.hold_spot = hold_spot
+        if not 0 <= peak_margin <= 255:
+            raise ValueError(f"need peak_margin 0..255, got {peak_margin}")
+        self.peak_margin = peak_margin
+        self._top: dict[int, int] = {}  # laser channel -> highest level seen on the screen
         self._need = confirm  # frames the current track needs before it is reported
         self._run = 0  # frames in a row with a spot, each near the one before
         self.half = math.ceil(math.sqrt(max_area / math.pi)) + 12  # window half size, px
@@ -337,6 +376,7 @@ class ColourSpotDetector:
         self.background = None
         self._last = None
         self._run = 0
+        self._top = {}
 
     # -- per frame -------------------------------------------------------------------
 
@@ -395,6 +435,9 @@ class ColourSpotDetector:
         cands = []
         for c in self.channels:
             lc = np.asarray(cv2.extractChannel(image, c), np.uint8)
+            if self.peak_margin < 255:
+                top = int(cv2.minMaxLoc(lc, self._mask8)[1])
+                self._top[c] = max(self._top.get(c, 0), top)
             clipped = cv2.threshold(lc, self.saturated - 1, 255, cv2.THRESH_BINARY)[1]
             cands.append((c, cv2.bitwise_and(clipped, self._low[c])))
         spot = self._best(image, cands, bg, near_only=False)
@@ -671,8 +714,10 @@ class ColourSpotDetector:
         ibox = (box[0] + v0, box[1] + v0, box[2] + u0, box[3] + u0)
         if sel is None:
             return None, ibox
-        # every test below looks at most r + 5 px beyond the blob (the ring's outer band,
-        # the fit's reach): measure in that part of the window only
+        if int(lc[sel].max()) < self._top.get(c, 0) - self.peak_margin:
+            return None, ibox  # a spot drives its channel to the highest level seen
+        # every test below looks at most r + 7 px beyond the blob (the ring's outer band,
+        # the fits' reach, cut here): measure in that part of the window only
         m = math.ceil(max(4.0, math.sqrt(np.count_nonzero(sel) / math.pi))) + 7
         r0, c0 = max(0, box[0] - m), max(0, box[2] - m)
         r1, c1 = min(sel.shape[0], box[1] + m), min(sel.shape[1], box[3] + m)
@@ -801,7 +846,7 @@ class ColourSpotDetector:
         fails or moves further than the blob's radius."""
         area = int(np.count_nonzero(sel))
         r = max(1.5, math.sqrt(area / math.pi))
-        size = 2 * math.ceil(1.5 * r + 4) + 1
+        size = 2 * math.ceil(r + 4) + 1
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
         grown = cv2.dilate(sel.view(np.uint8), ker).view(bool)
         ys, xs = np.nonzero(grown)

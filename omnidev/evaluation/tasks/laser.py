@@ -67,7 +67,7 @@ FILTERS: dict[str, tuple[float, float, float, float | None]] = {
 _DETECTOR_OPTIONS = (
     "saturated", "halo", "colour_ratio", "track_px", "busy_gain", "max_darker", "min_cross",
     "busy_events", "position", "new_margin", "confirm", "busy_confirm", "min_rise",
-    "fringe_ratio", "hold_spot",
+    "fringe_ratio", "hold_spot", "peak_margin",
 )  # fmt: skip
 _COUNTS = ("spot", "hit", "far", "missed", "off", "false", "hidden", "refused")
 
@@ -328,6 +328,7 @@ TASK = Task(
         "min_rise": -1.0,
         "fringe_ratio": -1.0,
         "hold_spot": -1,
+        "peak_margin": -1,
         "position": "",
         "cache": "",
     },

@@ -46,7 +46,8 @@ METHOD_OPTIONS: dict[str, dict[str, type]] = {
         "colour_ratio": float, "min_new": float, "max_elongation": float, "min_fill": float,
         "change_fraction": float, "track_px": float, "busy_gain": float, "fringe": float,
         "max_darker": float, "min_cross": float, "busy_events": int, "position": str,
-        "new_margin": int, "confirm": int, "busy_confirm": int,
+        "new_margin": int, "confirm": int, "busy_confirm": int, "min_rise": float,
+        "fringe_ratio": float, "hold_spot": bool, "peak_margin": int,
     },
     "white-core": {
         "step": int, "rise": int, "core": int, "saturated": int, "min_area": int,
@@ -103,6 +104,18 @@ def _number(options: Mapping[str, Any], key: str, kind: type) -> Any:
         raise TrackerError(f"laser-pointer: {key} must be {what}, got {options[key]!r}") from None
 
 
+_FLAGS = {"true": True, "yes": True, "1": True, "false": False, "no": False, "0": False}
+
+
+def _flag(options: Mapping[str, Any], key: str) -> bool:
+    value = options[key]
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.strip().lower() in _FLAGS:
+        return _FLAGS[value.strip().lower()]
+    raise TrackerError(f"laser-pointer: {key} must be true or false, got {value!r}")
+
+
 def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> LaserPointer:
     """Entry point: the calibration is a screen calibration file; options as documented."""
     method = str(options.get("method", "white-core"))
@@ -127,7 +140,9 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> LaserP
         )
     kwargs: dict[str, Any] = {}
     for key, kind in kinds.items():
-        if key in options:
+        if key in options and kind is bool:
+            kwargs[key] = _flag(options, key)
+        elif key in options:
             if isinstance(options[key], bool) or (
                 kind is int and isinstance(options[key], float) and not options[key].is_integer()
             ):
