@@ -132,8 +132,9 @@ def _fit_beam(
     """Levenberg-Marquardt fit of a round Gaussian beam ``b + A exp(-d^2 / 2 s^2)`` to
     the rise ``obs`` (linear light) at pixels (x, y); where ``cens`` (the channel
     clipped) the rise is only known to be >= ``room``. Parameters (u, v, ln A, ln s, b)
-    from ``start``; returns the centre (u, v), or None if it does not converge inside
-    its bounds (A 1e-3..100, s 0.3 px .. 4 x its start + 8 px, |b| <= 0.5)."""
+    from ``start``, kept inside bounds (A 1e-3..100, s 0.3 px .. 4 x its start + 8 px,
+    |b| <= 0.5); stops when the centre moves less than 0.02 px. Returns the centre
+    (u, v) of the best fit found, or None if the normal equations are singular."""
     lo = np.array([-np.inf, -np.inf, math.log(1e-3), math.log(0.3), -0.5])
     hi = np.array([np.inf, np.inf, math.log(100.0), math.log(4 * math.exp(start[3]) + 8), 0.5])
 

@@ -32,7 +32,8 @@ counts ``other.spot``, ``other.hit``, ``other.off``, ``other.false``), ``frames`
 keyword options as ``--opt KEY=VALUE`` for the ``colour`` method's tuning
 (``saturated``, ``halo``, ``colour_ratio``, ``track_px``, ``busy_gain``,
 ``max_darker``, ``min_cross``, ``busy_events``, ``position``, ``new_margin``,
-``confirm``, ``busy_confirm``), and
+``confirm``, ``busy_confirm``, ``min_rise``, ``fringe_ratio``, ``hold_spot`` (0 or 1),
+``peak_margin``), and
 ``cache`` (a directory: rendered frames are kept there and reused, so methods
 compared on the same scenes are rendered once; the frames depend only on the seed
 and ``frames``).
