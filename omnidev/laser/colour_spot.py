@@ -317,8 +317,8 @@ class ColourSpotDetector:
         self.bands = bands
         if not 0.0 <= max_darker <= 1.0 or position not in ("fit", "centroid", "beam"):
             raise ValueError(
-                f"need 0 <= max_darker <= 1 and position 'fit' or 'centroid', got {max_darker},"
-                f" {position!r}"
+                "need 0 <= max_darker <= 1 and position 'beam', 'centroid' or 'fit', got"
+                f" {max_darker}, {position!r}"
             )
         self.max_darker = max_darker
         self.min_cross = min_cross
