@@ -140,6 +140,7 @@ def _fit_beam(
 
     n = x.size
     cidx = np.flatnonzero(cens)
+    room_c = room[cidx]
 
     def resid(t: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         dx, dy = x - t[0], y - t[1]
@@ -148,8 +149,9 @@ def _fit_beam(
         g = np.exp(d2 * (-0.5 * inv) + t[2])
         p = g + t[4]
         res = obs - p
-        over = p[cidx] >= room[cidx]
-        res[cidx] = np.where(over, 0.0, room[cidx] - p[cidx])
+        pc = p[cidx]
+        over = pc >= room_c
+        res[cidx] = np.where(over, 0.0, room_c - pc)
         gi = g * inv
         j = np.empty((n, 5))
         j[:, 0] = gi * dx
@@ -855,11 +857,10 @@ class ColourSpotDetector:
         was = _LIN[model[:, :, c][grown]]
         cens = now >= self.saturated
         room = 1.0 - was
-        peak = 2.0 * float(np.median(room[cens])) if cens.any() else float((_LIN[now] - was).max())
+        rise = _LIN[now] - was
+        peak = 2.0 * float(np.median(room[cens])) if cens.any() else float(rise.max())
         start = np.array([pu, pv, math.log(max(peak, 1e-3)), math.log(r), 0.0])
-        fit = _fit_beam(
-            xs.astype(np.float64), ys.astype(np.float64), _LIN[now] - was, room, cens, start
-        )
+        fit = _fit_beam(xs.astype(np.float64), ys.astype(np.float64), rise, room, cens, start)
         if fit is None or math.hypot(fit[0] - pu, fit[1] - pv) > r + 1.0:
             return None
         return fit
