@@ -7,7 +7,8 @@ and the rough cross-matrix pattern (CMP) with the spacings W_g, H_g of eq. 5.3;
 (x, y) and radius r with eight scan windows around it, the position and radius of
 maximum edge energy in the search range. Beside the dissertation's integer DTM
 position, ``subpixel=True`` (default) refines each centre by the centroid of the
-dot's normalised brightness ``(d - b) / (w - b)`` in a disc around it.
+dot's normalised brightness ``(d - b) / (w - b)`` in a disc around it (``w - b``:
+one level per disc).
 
 Positions are image pixels (u right, v down, top-left pixel centre at (0, 0)).
 Dot indices are row-major from the top-left of the screen, as in
@@ -159,18 +160,36 @@ def _dtm(
     return best
 
 
+EDGE_FLOOR = 0.8  # of the disc's screen level: below it w - b is taken as the edge's blur
+
+
 def _centroid(
     norm: NDArray[np.float32], x: float, y: float, radius: float
 ) -> tuple[float, float] | None:
-    """Centroid of the normalised brightness in the disc of ``radius`` around (x, y)."""
-    h, w = norm.shape
+    """Centroid of the normalised brightness in the disc of ``radius`` around (x, y).
+
+    ``norm`` is :func:`_normalised`'s (H, W, 2) pair: the dot image's rise over the
+    black one, ``d - b``, and the screen's, ``w - b``. The rise is divided by ``w - b``
+    pixel by pixel (vignetting and uneven light cancel), but never by less than
+    ``EDGE_FLOOR`` of the disc's level (the 90th percentile of ``w - b`` in it): near the
+    screen's edge ``w - b`` falls in the blur while the dot's halo does not, and the
+    bare ratio there pulled the outer dots' centroids up to 0.7 px toward the edge.
+    Pixels off the screen (``w - b`` <= MIN_CONTRAST) weigh 0.
+    """
+    h, w = norm.shape[:2]
     r = math.ceil(radius)
     xi, yi = round(x), round(y)
     if xi - r < 0 or yi - r < 0 or xi + r >= w or yi + r >= h:
         return None
     patch = norm[yi - r : yi + r + 1, xi - r : xi + r + 1].astype(np.float64)
     gy, gx = np.mgrid[-r : r + 1, -r : r + 1]
-    wgt = patch * ((gx + xi - x) ** 2 + (gy + yi - y) ** 2 <= radius**2)
+    disc = (gx + xi - x) ** 2 + (gy + yi - y) ** 2 <= radius**2
+    lift, screen = patch[..., 0], patch[..., 1]
+    on = disc & (screen > MIN_CONTRAST)
+    if not on.any():
+        return None
+    level = max(float(np.percentile(screen[on], 90)), 1.0)
+    wgt = np.where(on, np.clip(lift / np.maximum(screen, EDGE_FLOOR * level), 0.0, 1.0), 0.0)
     s = float(wgt.sum())
     if s <= 0:
         return None
@@ -228,11 +247,11 @@ def _refine(
 def _normalised(
     gray: NDArray[np.uint8], white: NDArray[np.uint8], black: NDArray[np.uint8]
 ) -> NDArray[np.float32]:
+    """(H, W, 2): the dot image's rise over the black image and the white image's
+    (grey levels), for :func:`_centroid`."""
     w_img = to_gray(white).astype(np.float32)
     b_img = to_gray(black).astype(np.float32)
-    diff = w_img - b_img
-    norm = np.where(diff > MIN_CONTRAST, (gray - b_img) / np.maximum(diff, 1), 0)
-    return np.clip(norm, 0, 1).astype(np.float32)
+    return np.stack([gray.astype(np.float32) - b_img, w_img - b_img], axis=-1)
 
 
 def _corner_homography(border: BorderPolygon, screen_size: tuple[int, int]) -> FloatArray:

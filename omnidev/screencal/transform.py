@@ -14,8 +14,10 @@ defined. Methods:
   the dots.
 - ``radial``: a lens model fitted to all dots by least squares - undistortion
   ``p_u = c + (p - c)(1 + k1 r^2 + k2 r^4 + k3 r^6)`` (r normalised by the image
-  half-diagonal, centre c free) followed by a homography - plus a correction
-  interpolated bilinearly from its residuals at the dots (screen lattice).
+  half-diagonal, centre c free) followed by a homography, the screen's edges held
+  beyond the outer dots - plus a correction interpolated bilinearly from its
+  residuals at the dots (screen lattice) where those residuals form a smooth field
+  rather than detection noise.
 - ``tsai`` lives in :mod:`omnidev.screencal.tsai`.
 """
 
@@ -216,6 +218,34 @@ class HomographyMap:
 # ---------------------------------------------------------------- radial + homography + residual
 
 
+DOT_NOISE_PX = 0.07  # image px: the dot centres' typical error on the tuning scenes
+CORRECTION_GAIN = 0.5  # "auto": the neighbours must predict half the residuals' power
+
+
+def residual_predictability(field: FloatArray, found: NDArray[np.bool_]) -> float:
+    """How well each found dot's residual (``field``, (rows, cols, 2)) is predicted by
+    the mean of its found 4-neighbours (at least two): the squared prediction error
+    over the squared residuals, summed over the dots. About 1.25 for independent
+    noise, near 0 for a smooth field; inf when no dot has two found neighbours."""
+    rows, cols = int(field.shape[0]), int(field.shape[1])
+    f = np.asarray(found, np.bool_).reshape(rows, cols)
+    pad = np.zeros((rows + 2, cols + 2), np.float64)
+    pad[1:-1, 1:-1] = f
+    vals = np.zeros((rows + 2, cols + 2, 2))
+    vals[1:-1, 1:-1] = np.where(f[..., None], field, 0.0)
+    count = np.zeros((rows, cols))
+    total = np.zeros((rows, cols, 2))
+    for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+        count += pad[1 + di : rows + 1 + di, 1 + dj : cols + 1 + dj]
+        total += vals[1 + di : rows + 1 + di, 1 + dj : cols + 1 + dj]
+    use = f & (count >= 2)
+    if not use.any():
+        return math.inf
+    pred = total[use] / count[use][:, None]
+    err = float(np.sum((field[use] - pred) ** 2))
+    return err / max(float(np.sum(field[use] ** 2)), 1e-300)
+
+
 def _radial_apply(p: FloatArray, pts: FloatArray, scale: float) -> FloatArray:
     """Image px -> screen px of the radial model with parameter vector ``p``:
     [cx, cy, k1, k2, k3, h11, h12, h13, h21, h22, h23, h31, h32] (h33 = 1)."""
@@ -259,9 +289,11 @@ class RadialMap:
         n: int | tuple[int, int],
         found: NDArray[np.bool_],
         *,
-        correct: bool = True,
+        correct: bool | str = "auto",
         edges: Sequence[tuple[FloatArray, int, float]] | None = None,
         edge_weight: float = 0.2,
+        edge_offset: str = "side",
+        edge_tie: float = 0.15,
     ) -> RadialMap:
         """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2); ``n``:
         the lattice's dots per side, or (rows, cols); ``found`` (rows*cols,).
@@ -270,9 +302,21 @@ class RadialMap:
         normal, each set with the screen coordinate (0: x, 1: y) and value it must map
         to (e.g. the top edge: y = -0.5); each point weighs ``edge_weight`` of a dot
         coordinate. They hold the model where it extrapolates beyond the outer dots.
-        One common offset along the normals is fitted with them: where an edge
-        appears to be depends on blur and the camera's tone curve, its shape does
-        not."""
+        An offset along the normals is fitted with them, one per set
+        (``edge_offset="side"``, default) or one for all (``"common"``): where an
+        edge appears to be depends on blur, bloom, the camera's tone curve and the
+        light on that side, its shape does not. On the tuning scenes of issue 12
+        the measured edges sat 0.1-0.3 image px off the truth, differently on each
+        side. ``edge_tie`` (image px; 0: free): the sides' offsets are tied to their
+        mean as if each difference were measured to within ``edge_tie``, weighed like
+        a dot coordinate measured to within ``DOT_NOISE_PX``.
+
+        ``correct``: add the bilinear interpolation of the dot residuals (True), not
+        (False), or ``"auto"`` (default): only when the residuals are a field the
+        neighbours predict, i.e. each dot's residual predicted from its found
+        4-neighbours' leaves less than ``CORRECTION_GAIN`` of its power
+        (:func:`residual_predictability`). Residuals that are detection noise are
+        not predictable and are left out: interpolating them passes the noise on."""
         rows, cols = (n, n) if isinstance(n, int) else (int(n[0]), int(n[1]))
         w, h = image_size
         scale = 0.5 * float(np.hypot(w, h))
@@ -285,39 +329,46 @@ class RadialMap:
         edge_sets = [
             (np.asarray(e, np.float64).reshape(-1, 4), a, v) for e, a, v in edges or () if len(e)
         ]
+        if edge_offset not in ("side", "common"):
+            raise ValueError(f"edge_offset {edge_offset!r}: 'side' or 'common'")
+        if correct not in (True, False, "auto"):
+            raise ValueError(f"correct {correct!r}: True, False or 'auto'")
         weight = math.sqrt(edge_weight)
-        use = bool(edge_sets)
+        n_off = len(edge_sets) if edge_offset == "side" else min(len(edge_sets), 1)
+        # a dot coordinate's noise (DOT_NOISE_PX image px) in screen px: the tie weighs
+        # like a measurement of that quality
+        tie_unit = DOT_NOISE_PX * sx / max(float(np.ptp(uv[:, 0])), 1e-9)
 
         def resid(p: FloatArray, k: int) -> FloatArray:
             pp = p[:13].copy()
             pp[2 + k : 5] = 0.0
             parts = [(_radial_apply(pp, uv, scale) - xy).ravel()]
-            for e, axis, value in edge_sets:  # edge points land on their screen edge
-                pts = e[:, :2] + p[13] * e[:, 2:]  # shifted along the normal by delta
+            for i, (e, axis, value) in enumerate(edge_sets):  # edge points land on their edge
+                delta = p[13 + min(i, n_off - 1)]  # shifted along the normal (image px)
+                pts = e[:, :2] + delta * e[:, 2:]
                 parts.append(weight * (_radial_apply(pp, pts, scale)[:, axis] - value))
+            if n_off > 1 and edge_tie > 0:  # the sides' offsets differ by ~edge_tie
+                d = p[13 : 13 + n_off]
+                parts.append((d - d.mean()) * (tie_unit / edge_tie))
             return np.concatenate(parts) / sx
 
-        p = np.append(p0, 0.0)  # the last: the edges' common offset delta (image px)
+        p = np.append(p0, np.zeros(n_off))  # then the edges' offsets along their normals
         terms = 3 if found.all() else 2  # a partial grid: fewer terms extrapolate better
         for k in range(1, terms + 1):  # grow the radial series: stabler than all at once
 
             def cost(q: FloatArray, k: int = k) -> FloatArray:
-                if not use:
-                    q = np.append(q[:13], 0.0)
                 return resid(q, k)
 
-            p = (
-                levenberg_marquardt(cost, p)
-                if use
-                else np.append(levenberg_marquardt(cost, p[:13]), 0.0)
-            )
+            p = levenberg_marquardt(cost, p)
             p[2 + k : 5] = 0.0
         p = p[:13]
         model = cls(p, scale, np.zeros((rows, cols, 2)), lattice)
         if correct:
             res = np.zeros((rows * cols, 2))
             res[found] = xy - _radial_apply(p, uv, scale)
-            model.residual = res.reshape(rows, cols, 2)
+            field = res.reshape(rows, cols, 2)
+            if correct is True or residual_predictability(field, found) < CORRECTION_GAIN:
+                model.residual = field
         return model
 
     def params(self) -> Params:
