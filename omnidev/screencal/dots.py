@@ -189,7 +189,8 @@ def _centroid(
     if not on.any():
         return None
     level = max(float(np.percentile(screen[on], 90)), 1.0)
-    wgt = np.where(on, np.clip(lift / np.maximum(screen, EDGE_FLOOR * level), 0.0, 1.0), 0.0)
+    floor = max(EDGE_FLOOR * level, 1.0)
+    wgt = np.where(on, np.clip(lift / np.maximum(screen, floor), 0.0, 1.0), 0.0)
     s = float(wgt.sum())
     if s <= 0:
         return None
