@@ -340,27 +340,21 @@ def _check_alignment(
     off = np.abs([xy[0, 1] + 0.5, xy[1, 0] - (sw - 0.5), xy[2, 1] - (sh - 0.5), xy[3, 0] + 0.5])
     worst = float(np.max(off))
     spacing = float(min(lattice[2], lattice[3]))
-    # the corners too (a glare or an occluder can cut a corner off the lit region): each
-    # screen corner must lie on the border's outline. Not at its vertex: where the
-    # lens bends the sides to a very obtuse corner, the sides' fits meet up to a dot
-    # spacing along the outline from it. The model extrapolates there along both
-    # axes, so half a spacing is allowed.
-    v = border.vertices
-    t = np.linspace(0.0, 1.0, 64, endpoint=False)[:, None, None]
-    outline = model((v[None] + t * (np.roll(v, -1, axis=0)[None] - v[None])).reshape(-1, 2))
+    # the corners too (a glare or an occluder can cut a corner off the lit region); the
+    # model extrapolates there along both axes, so half a spacing is allowed
+    corners = model(border.vertices[[0, 2, 4, 6]])
     screen_corners = np.array(
         [[-0.5, -0.5], [sw - 0.5, -0.5], [sw - 0.5, sh - 0.5], [-0.5, sh - 0.5]]
     )
-    dist = np.hypot(*(outline[None, :, :] - screen_corners[:, None, :]).transpose(2, 0, 1))
-    coff = np.nanmin(dist, axis=1) if np.isfinite(dist).any(axis=1).all() else np.full(4, np.nan)
+    coff = np.hypot(*(corners - screen_corners).T)
     if np.isfinite(coff).all() and float(np.max(coff)) > 0.5 * spacing:
         k = int(np.argmax(coff))
         corner = ("top-left", "top-right", "bottom-right", "bottom-left")[k]
         raise CalibrationError(
             f"the dots do not line up with the screen border of the white/black images: "
-            f"where the dots put its {corner} corner, the lit area's outline is "
-            f"{float(coff[k]):.0f} screen px ({float(coff[k]) / spacing:.2f} dot spacings) "
-            "away; is that corner hidden, or is a reflection or glare on the screen there?"
+            f"its {corner} corner is {float(coff[k]):.0f} screen px ({float(coff[k]) / spacing:.2f}"
+            " dot spacings) from where the dots put it; is that corner hidden, or is a "
+            "reflection or glare on the screen there?"
         )
     if not worst <= 0.25 * spacing:
         side = ("top", "right", "bottom", "left")[int(np.argmax(off))]
