@@ -48,7 +48,8 @@ def test_outer_dots_beside_the_screen_edge_are_not_pulled_toward_it(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     # seed 50027: 4 x 12 dots whose outer rows end 2 screen px from the screen's edge;
-    # dividing by w - b pixel by pixel pulled them 0.4-0.76 image px toward the edge
+    # dividing by w - b pixel by pixel pulled them 0.2-0.76 image px (0.5 on average)
+    # toward the edge
     scene, caps = _scene(50027)
     grid = draw_layout(50027, scene.screen_px, "random")
 

@@ -7,8 +7,8 @@ and the rough cross-matrix pattern (CMP) with the spacings W_g, H_g of eq. 5.3;
 (x, y) and radius r with eight scan windows around it, the position and radius of
 maximum edge energy in the search range. Beside the dissertation's integer DTM
 position, ``subpixel=True`` (default) refines each centre by the centroid of the
-dot's normalised brightness ``(d - b) / (w - b)`` in a disc around it (``w - b``:
-one level per disc).
+dot's normalised brightness ``(d - b) / (w - b)`` in a disc around it (``w - b``
+floored near the screen's edge, see :func:`_centroid`).
 
 Positions are image pixels (u right, v down, top-left pixel centre at (0, 0)).
 Dot indices are row-major from the top-left of the screen, as in
