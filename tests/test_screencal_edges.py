@@ -12,7 +12,7 @@ import pytest
 from omnidev.evaluation.tasks.screen import _captures, _to_ref, draw_layout, heldout_points
 from omnidev.screencal import dots as dots_mod
 from omnidev.screencal.calibration import ScreenFeatures, detect_screen, fit_calibration
-from omnidev.screencal.features import edge_points
+from omnidev.screencal.features import BorderPolygon, edge_points
 from omnidev.screencal.transform import RadialMap, _radial_apply, residual_predictability
 from omnidev.sim.screen_scenes import ScreenScene, draw_scene
 
@@ -123,3 +123,20 @@ def test_residual_correction_is_kept_only_for_a_field_the_neighbours_predict() -
     assert forced.residual.any()
     with pytest.raises(ValueError, match="edge_offset"):
         RadialMap.fit(noisy, xy, (1280, 720), lattice, (7, 9), found, edge_offset="x")
+
+
+def test_a_side_with_no_edge_gives_no_points_and_no_error() -> None:
+    # a lit rectangle whose polygon's top side lies 20 px above its top edge: no profile
+    # there crosses an edge; the other sides give their points
+    white = np.full((120, 160), 20, np.uint8)
+    white[30:100, 20:140] = 220
+    black = np.full((120, 160), 20, np.uint8)
+    v = np.array(
+        [[20, 10], [80, 10], [140, 10], [140, 55], [140, 100], [80, 100], [20, 100], [20, 55]],
+        np.float64,
+    ) - np.array([0.5, 0.5])
+    top, right, bottom, left = edge_points(white, black, BorderPolygon(v))
+    assert top.shape == (0, 4)
+    for side, axis, value in ((right, 0, 139.5), (bottom, 1, 99.5), (left, 0, 19.5)):
+        assert len(side) > 10
+        assert np.abs(side[:, axis] - value).max() < 0.05

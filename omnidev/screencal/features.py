@@ -537,6 +537,8 @@ def _edge_crossings(
     """Offset (image px along ``nrm``) of the edge's half-level crossing on each
     profile through ``p``, the profiles averaged over the parallel lines ``along``
     (px along ``tang``); NaN where the profile shows no clear edge within 4 px."""
+    if len(p) == 0:  # no profile left on this side (cv2.remap refuses an empty map)
+        return np.zeros(0)
     prof = np.zeros((len(p), len(offs)))
     for s_ in along:
         q = p[:, None, :] + offs[None, :, None] * nrm[:, None, :] + s_ * tang[:, None, :]
@@ -551,7 +553,7 @@ def _edge_crossings(
     inside = np.median(prof[:, :8], axis=1)  # offsets -5 .. -3.25
     outside = np.median(prof[:, -8:], axis=1)
     half = 0.5 * (inside + outside)
-    good = inside - outside > 0.15 * max(float(np.median(inside)) if len(p) else 0.0, 1e-6)
+    good = inside - outside > 0.15 * max(float(np.median(inside)), 1e-6)
     out = np.full(len(p), np.nan)
     for k in np.flatnonzero(good):
         s = prof[k] - half[k]
