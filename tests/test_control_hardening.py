@@ -3,6 +3,7 @@ reload, and a second daemon refused before it opens anything (its sink included)
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import threading
@@ -84,7 +85,11 @@ def _run(daemon: Daemon) -> threading.Thread:
     t = threading.Thread(target=daemon.run, daemon=True)
     t.start()
     deadline = time.monotonic() + 20
-    while (daemon.server is None or not daemon.socket.exists()) and time.monotonic() < deadline:
+    while time.monotonic() < deadline:  # until the socket answers, not only exists
+        if daemon.server is not None and daemon.socket.exists():
+            with contextlib.suppress(ControlError):
+                request(daemon.socket, "status")
+                break
         time.sleep(0.05)
     return t
 

@@ -205,6 +205,7 @@ class ControlServer:
         old_umask = os.umask(0o177)  # the node is born 0600: no window with a wider mode
         try:
             listener.bind(os.fspath(self.path))
+            listener.listen(16)  # at once: a client that sees the file gets an answer
         except OSError as exc:
             listener.close()
             raise ControlError(f"control socket {self.path}: cannot bind: {exc.strerror}") from None
@@ -213,7 +214,6 @@ class ControlServer:
         os.chmod(self.path, 0o600)
         st = os.stat(self.path)
         self._inode = (st.st_dev, st.st_ino)
-        listener.listen(16)
         listener.setblocking(False)
         self._listener = listener
         self._thread = threading.Thread(target=self._serve, name="omnidev-control", daemon=True)
