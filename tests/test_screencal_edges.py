@@ -13,20 +13,20 @@ from omnidev.evaluation.tasks.screen import _captures, _to_ref, draw_layout, hel
 from omnidev.screencal import dots as dots_mod
 from omnidev.screencal.calibration import ScreenFeatures, detect_screen, fit_calibration
 from omnidev.screencal.features import BorderPolygon, edge_points
+from omnidev.screencal.patterns import DotGrid
 from omnidev.screencal.transform import RadialMap, _radial_apply, residual_predictability
 from omnidev.sim.screen_scenes import ScreenScene, draw_scene
 
 
 @cache
-def _scene(seed: int) -> tuple[ScreenScene, list[np.ndarray]]:
+def _scene(seed: int) -> tuple[ScreenScene, DotGrid, list[np.ndarray]]:
     scene = draw_scene(seed)
     grid = draw_layout(seed, scene.screen_px, "random")
-    return scene, _captures(scene, grid, 3)
+    return scene, grid, _captures(scene, grid, 3)
 
 
 def _detect(seed: int) -> tuple[ScreenScene, ScreenFeatures]:
-    scene, caps = _scene(seed)
-    grid = draw_layout(seed, scene.screen_px, "random")
+    scene, grid, caps = _scene(seed)
     return scene, detect_screen(caps[0], caps[1], caps[2], layout=grid)
 
 
@@ -50,8 +50,7 @@ def test_outer_dots_beside_the_screen_edge_are_not_pulled_toward_it(
     # seed 50027: 4 x 12 dots whose outer rows end 2 screen px from the screen's edge;
     # dividing by w - b pixel by pixel pulled them 0.2-0.76 image px (0.5 on average)
     # toward the edge
-    scene, caps = _scene(50027)
-    grid = draw_layout(50027, scene.screen_px, "random")
+    scene, grid, caps = _scene(50027)
 
     def outer_rows_off() -> float:
         feat = detect_screen(caps[0], caps[1], caps[2], layout=grid)
@@ -66,7 +65,7 @@ def test_outer_dots_beside_the_screen_edge_are_not_pulled_toward_it(
 def _edge_scatter(scene: ScreenScene, feat: ScreenFeatures, **kw: float) -> float:
     """Std (image px along the normal) of the edge points about each side's median
     offset from the true edge."""
-    _, caps = _scene(scene.seed)
+    caps = _scene(scene.seed)[2]
     sw, sh = scene.screen_px
     devs = []
     sides = edge_points(caps[0], caps[1], feat.border, **kw)
