@@ -409,6 +409,31 @@ def _four_corners(hull: FloatArray) -> FloatArray:
     return np.roll(quad, -first, axis=0)
 
 
+def _corners_and_mids(
+    quad: FloatArray, coefs: Sequence[FloatArray]
+) -> tuple[list[FloatArray], list[FloatArray]]:
+    """Corner i where the fitted sides i-1 and i meet (alternate projections onto the
+    two curves, from the rough corner ``quad[i]``) and each side's point at its middle;
+    side i's fit (:func:`_side_fit`) is in the frame of quad[i] -> quad[i+1]."""
+    corners = []
+    for i in range(4):  # corner i: sides i-1 (ending at it) and i (starting at it)
+        j = (i - 1) % 4
+        p = quad[i].copy()
+        for _ in range(20):
+            p_old = p
+            for k in (j, i):
+                a, b = quad[k], quad[(k + 1) % 4]
+                e = b - a
+                length = float(np.hypot(*e))
+                t = float((p - a) @ (e / length)) / length
+                p = _side_point(coefs[k], a, b, t)
+            if np.hypot(*(p - p_old)) < 1e-4:
+                break
+        corners.append(p)
+    mids = [_side_point(coefs[i], quad[i], quad[(i + 1) % 4], 0.5) for i in range(4)]
+    return corners, mids
+
+
 def border_from_region(region: ScreenRegion) -> BorderPolygon:
     """The eight-sided border polygon (P0 top-left corner, P1 top side, ... as
     :class:`BorderPolygon`) fitted to the screen region's outline.
@@ -440,28 +465,44 @@ def border_from_region(region: ScreenRegion) -> BorderPolygon:
         s = (c - a) @ uy
         near = (t > -0.05 * length) & (t < 1.05 * length) & (np.abs(s) < 0.12 * length + 3)
         coefs.append(_side_fit(c[near], a, b))
-    corners = []
-    for i in range(4):  # corner i: sides i-1 (ending at it) and i (starting at it)
-        j = (i - 1) % 4
-        p = quad[i].copy()
-        for _ in range(20):  # alternate projections onto the two fitted curves
-            p_old = p
-            for k, side in ((j, 1.0), (i, 0.0)):
-                a, b = quad[k], quad[(k + 1) % 4]
-                e = b - a
-                length = float(np.hypot(*e))
-                t = float((p - a) @ (e / length)) / length
-                p = _side_point(coefs[k], a, b, t)
-                del side
-            if np.hypot(*(p - p_old)) < 1e-4:
-                break
-        corners.append(p)
-    mids = [_side_point(coefs[i], quad[i], quad[(i + 1) % 4], 0.5) for i in range(4)]
+    corners, mids = _corners_and_mids(quad, coefs)
     # pixel-centre contour -> the edge half a pixel further out (the mask's boundary)
     v = np.array(
         [corners[0], mids[0], corners[1], mids[1], corners[2], mids[2], corners[3], mids[3]]
     )
     out = v + 0.5 * np.sign(v - v.mean(axis=0)) * (np.abs(v - v.mean(axis=0)) > 1)
+    return BorderPolygon(np.asarray(out, np.float64))
+
+
+def border_from_edges(
+    white: NDArray[np.uint8], black: NDArray[np.uint8], border: BorderPolygon
+) -> BorderPolygon:
+    """``border`` refitted to the sub-pixel edge points (:func:`edge_points`) found
+    along it: each side a robust quadratic through its points, corners where the fits
+    meet, mid-side vertices the fits at their middles (image px).
+
+    The outline of the thresholded region follows the screen's edge only where the
+    white-minus-black difference is well above the threshold: where a projector's or
+    a monitor's light falls off toward a corner the outline turns ragged and cuts in
+    (12 image px at one corner of the tuning scene 50053), and the sides fitted to it
+    meet in the wrong place; the edge points take the half-level crossing of each
+    profile's own inside and outside levels and do not cut in. A side with fewer than
+    six edge points keeps ``border``'s fit.
+    """
+    sides = edge_points(white, black, border)
+    v = border.vertices
+    quad = v[[0, 2, 4, 6]]
+    coefs = []
+    for i in range(4):
+        a, b = quad[i], quad[(i + 1) % 4]
+        pts = sides[i][:, :2]
+        if len(pts) < 6:
+            return border
+        coefs.append(_side_fit(pts, a, b))
+    corners, mids = _corners_and_mids(quad, coefs)
+    out = np.array(
+        [corners[0], mids[0], corners[1], mids[1], corners[2], mids[2], corners[3], mids[3]]
+    )
     return BorderPolygon(np.asarray(out, np.float64))
 
 
@@ -474,6 +515,7 @@ def edge_points(
     gamma: float = 2.2,
     strip: float = 0.4,
     strip_lines: int = 9,
+    ends: float = 0.06,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Sub-pixel points on the lit area's top, right, bottom and left edges: (K, 4)
     arrays of (u, v, nu, nv), image px and the outward unit normal.
@@ -502,7 +544,7 @@ def edge_points(
     for side in range(4):
         a, m, c = v[2 * side], v[2 * side + 1], v[(2 * side + 2) % 8]
         t = (np.arange(per_side) + 0.5) / per_side
-        t = t[(t > 0.06) & (t < 0.94)]
+        t = t[(t > ends) & (t < 1.0 - ends)]
         first = t < 0.5
         p = np.where(
             first[:, None], a + (m - a) * (2 * t)[:, None], m + (c - m) * (2 * t - 1)[:, None]

@@ -294,6 +294,7 @@ class RadialMap:
         edge_weight: float = 0.2,
         edge_offset: str = "side",
         edge_tie: float = 0.15,
+        terms: int | None = None,
     ) -> RadialMap:
         """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2); ``n``:
         the lattice's dots per side, or (rows, cols); ``found`` (rows*cols,).
@@ -353,7 +354,10 @@ class RadialMap:
             return np.concatenate(parts) / sx
 
         p = np.append(p0, np.zeros(n_off))  # then the edges' offsets along their normals
-        terms = 3 if found.all() else 2  # a partial grid: fewer terms extrapolate better
+        if terms is None:
+            terms = 3 if found.all() else 2  # a partial grid: fewer terms extrapolate better
+        if terms not in (1, 2, 3):
+            raise ValueError(f"terms {terms!r}: 1, 2 or 3")
         for k in range(1, terms + 1):  # grow the radial series: stabler than all at once
 
             def cost(q: FloatArray, k: int = k) -> FloatArray:

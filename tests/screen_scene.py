@@ -1,0 +1,38 @@
+"""Randomized screen-calibration scenes for tests (:mod:`omnidev.sim.screen_scenes`):
+the captures a user would take, cached per process, and a calibration's errors
+against the scene's exact truth."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+
+from omnidev.evaluation.tasks.screen import _captures, _to_ref, draw_layout, heldout_points
+from omnidev.screencal.calibration import ScreenFeatures, detect_screen, fit_calibration
+from omnidev.screencal.patterns import DotGrid
+from omnidev.sim.screen_scenes import ScreenScene, draw_scene
+
+
+@cache
+def scene(seed: int) -> tuple[ScreenScene, DotGrid, list[np.ndarray]]:
+    """Scene ``seed`` of ``omnidev eval screen``, its dot layout and the white, black and
+    dot captures."""
+    sc = draw_scene(seed)
+    grid = draw_layout(seed, sc.screen_px, "random")
+    return sc, grid, _captures(sc, grid, 3)
+
+
+def detect(seed: int) -> tuple[ScreenScene, DotGrid, ScreenFeatures]:
+    """Scene ``seed`` and the features :func:`detect_screen` finds in its captures."""
+    sc, grid, caps = scene(seed)
+    return sc, grid, detect_screen(caps[0], caps[1], caps[2], layout=grid)
+
+
+def heldout_errors(sc: ScreenScene, feat: ScreenFeatures, method: str = "radial") -> np.ndarray:
+    """Errors (px of a 1920x1080 screen; NaN: not mapped) of ``method`` at the held-out
+    screen points the camera sees."""
+    xy = heldout_points(sc.screen_px)
+    xy = xy[sc.visible(xy)]
+    est = fit_calibration(feat, method).image_to_screen(sc.screen_to_image(xy))
+    return np.asarray(np.hypot(*_to_ref(est - xy, sc.screen_px).T), np.float64)
