@@ -64,7 +64,7 @@ BORDERS = ("region", "tdm")
 METHODS = ("radial", "bilinear", "idw", "homography", "tsai")
 DEFAULT_METHOD = "radial"
 EDGE_TOLERANCE_PX = 1.0  # screen px beyond the screen's edge still mapped (not NaN)
-EDGE_ENDS = 0.03  # the ends of each side (fraction) with no edge profile
+EDGE_ENDS = 0.03  # fraction of each side's length, at both ends, with no edge profile
 
 
 def min_dots(n: int, cols: int | None = None) -> int:

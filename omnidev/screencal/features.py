@@ -483,11 +483,12 @@ def border_from_edges(
 
     The outline of the thresholded region follows the screen's edge only where the
     white-minus-black difference is well above the threshold: where a projector's or
-    a monitor's light falls off toward a corner the outline turns ragged and cuts in
-    (12 image px at one corner of the tuning scene 50053), and the sides fitted to it
-    meet in the wrong place; the edge points take the half-level crossing of each
-    profile's own inside and outside levels and do not cut in. A side with fewer than
-    six edge points keeps ``border``'s fit.
+    a monitor's light falls off toward a corner, or a reflection lies on it, the
+    outline turns ragged and cuts in, and the sides fitted to it meet in the wrong
+    place (9-18 image px off on the tuning scene 50159, 50 px at the glare of 50036;
+    refitted, within 1.2 and 3 px); the edge points take the half-level crossing of
+    each profile's own inside and outside levels and do not cut in. Where a side has
+    fewer than six edge points, ``border`` is returned as it is.
     """
     sides = edge_points(white, black, border)
     v = border.vertices
