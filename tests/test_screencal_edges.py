@@ -165,30 +165,21 @@ def test_corner_check_extrapolates_with_the_lens_model_that_agrees() -> None:
     sw, sh = sc.screen_px
     corners = feat.border.vertices[[0, 2, 4, 6]]
     screen = np.array([[-0.5, -0.5], [sw - 0.5, -0.5], [sw - 0.5, sh - 0.5], [-0.5, sh - 0.5]])
+    args = (
+        d.centers[d.found],
+        feat.screen_dots[d.found],
+        feat.image_size,
+        feat.lattice,
+        d.shape,
+        d.found,
+    )
     off = {}
     for terms in (1, 3):
-        m = RadialMap.fit(
-            d.centers[d.found],
-            feat.screen_dots[d.found],
-            feat.image_size,
-            feat.lattice,
-            d.shape,
-            d.found,
-            correct=True,
-            terms=terms,
-        )
+        m = RadialMap.fit(*args, correct=True, terms=terms)
         off[terms] = float(np.hypot(*(m(corners) - screen).T).max()) / float(feat.lattice[2:].min())
     assert off[3] > 0.5 > 0.1 > off[1]
     with pytest.raises(ValueError, match="terms"):
-        RadialMap.fit(
-            d.centers[d.found],
-            feat.screen_dots[d.found],
-            feat.image_size,
-            feat.lattice,
-            d.shape,
-            d.found,
-            terms=4,
-        )
+        RadialMap.fit(*args, terms=4)
 
 
 def test_edge_profiles_reach_into_the_corners(monkeypatch: pytest.MonkeyPatch) -> None:
