@@ -20,7 +20,7 @@ from omnidev.daemon.config import parse_config
 from omnidev.errors import TrackerError
 from omnidev.evaluation.framework import load_task
 from omnidev.filters import OneEuroFilter
-from omnidev.laser.colour_spot import ColourSpotDetector, _fit_beam
+from omnidev.laser.colour_spot import ColourSpotDetector, _fit_beam, _fit_beams
 from omnidev.sim.screen import Spot, render, screen_rig
 from omnidev.sim.screen_content import slide
 from omnidev.tracking import open_tracker
@@ -48,9 +48,10 @@ def test_sample_colour_beats_white_core(sample: dict[int, dict[str, int]]) -> No
     assert spot == sum(c["other.spot"] for c in sample.values()) > 40
     print(f"\ncolour {hit}/{spot}, white-core {ohit}/{spot} spot frames within tolerance")
     assert hit >= ohit + 0.2 * spot  # the colour detector finds what needs no white core
-    # measured 42 / 67 (63 %) with the beam fit, min_rise, fringe_ratio and hold_spot
-    # (33 / 67 before them; the sim's encoders run on one thread, so it is repeatable)
-    assert hit >= 0.6 * spot
+    # measured 46 / 67 (69 %) with the beam fitted in three channels (42 / 67 in the
+    # laser channel alone; 33 / 67 before the beam fit, min_rise, fringe_ratio and
+    # hold_spot; the sim's encoders run on one thread, so it is repeatable)
+    assert hit >= 0.65 * spot
 
 
 def test_sample_false_spots(sample: dict[int, dict[str, int]]) -> None:
@@ -207,6 +208,41 @@ def test_beam_fit_is_not_bent_by_the_content_under_the_spot() -> None:
     noisy = obs + np.random.default_rng(3).normal(0.0, 0.01, obs.shape)
     fit = _fit_beam(xx.ravel(), yy.ravel(), noisy.ravel(), room.ravel(), cens.ravel(), start)
     assert fit is not None and math.hypot(fit[0] - cu, fit[1] - cv_) < 0.1
+
+
+def test_beam_fit_in_three_channels_where_the_laser_channel_has_little_room() -> None:
+    """A beam on a page of the laser's own colour (its channel 0.9 of white in linear
+    light, so it clips over most of the spot) that also reaches the other two channels
+    (crosstalk 0.25 and 0.15, dark there): fitting the three channels about one centre
+    (``beam_channels`` 3) is about 3x closer than the laser channel alone over 20 noise
+    draws (measured RMS 0.032 px against 0.094). Synthetic, exact truth."""
+    yy, xx = np.mgrid[0:41, 0:41].astype(np.float64)
+    cu, cv_, amp, sig = 20.3, 19.6, 4.0, 3.0
+    beam = amp * np.exp(-((xx - cu) ** 2 + (yy - cv_) ** 2) / (2 * sig**2))
+    content = np.where(xx > 14.0, 0.9, 0.05)
+    room = np.stack([1.0 - content, np.full(xx.shape, 0.95), np.full(xx.shape, 0.9)])
+    light = np.stack([beam, 0.25 * beam, 0.15 * beam])
+    cens = light >= room
+    x, y = xx.ravel(), yy.ravel()
+    start1 = np.array([18.0, 18.0, math.log(2.0), math.log(3.0), 0.0])
+    start3 = np.array([18.0, 18.0, *[math.log(2.0), math.log(3.0), 0.0] * 3])
+    e1, e3 = [], []
+    for seed in range(20):
+        obs = np.minimum(room, light) + np.random.default_rng(seed).normal(0, 0.03, light.shape)
+        f1 = _fit_beam(x, y, obs[0].ravel(), room[0].ravel(), cens[0].ravel(), start1)
+        f3 = _fit_beams(x, y, obs.reshape(3, -1), room.reshape(3, -1), cens.reshape(3, -1), start3)
+        assert f1 is not None and f3 is not None
+        e1.append(math.hypot(f1[0] - cu, f1[1] - cv_))
+        e3.append(math.hypot(f3[0] - cu, f3[1] - cv_))
+    rms1, rms3 = float(np.sqrt(np.mean(np.square(e1)))), float(np.sqrt(np.mean(np.square(e3))))
+    assert rms3 < 0.05 and rms3 < 0.5 * rms1
+    # one channel through the K-channel fit is the single-channel fit
+    o1, r1, c1 = (a[:1].reshape(1, -1) for a in (obs, room, cens))
+    one = _fit_beams(x, y, o1, r1, c1, start1)
+    ref = _fit_beam(x, y, obs[0].ravel(), room[0].ravel(), cens[0].ravel(), start1)
+    assert one is not None and ref is not None and np.allclose(one, ref, atol=1e-9)
+    with pytest.raises(ValueError, match="beam_channels 1 or 3"):
+        ColourSpotDetector("red", beam_channels=2)
 
 
 def test_one_euro_max_gap_restarts() -> None:

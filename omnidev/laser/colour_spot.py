@@ -55,7 +55,10 @@ Coordinates: image pixels, u right, v down, the centre of the top-left pixel at
 (0, 0). The position (``position`` "beam", the default) is the centre of a round
 Gaussian fitted to the laser channel's rise over the model in linear light, with
 clipped pixels censored (they say only that the beam filled the room the content
-left below clipping), so the content under the spot does not bend it; "centroid" is
+left below clipping), so the content under the spot does not bend it; with
+``beam_channels`` 3 (the default) the other two channels' rise (the laser's light
+leaking into them, rarely clipped) is fitted too, each channel with its own amplitude,
+width and offset about the one centre; "centroid" is
 the clipped blob's centroid with a soft edge (pixels ``soft`` grey levels below
 ``saturated`` weigh 0, clipped ones 1), also the fallback where the fit fails.
 """
@@ -186,6 +189,83 @@ def _fit_beam(
     return float(th[0]), float(th[1])
 
 
+def _fit_beams(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    obs: NDArray[np.float64],
+    room: NDArray[np.float64],
+    cens: NDArray[np.bool_],
+    start: NDArray[np.float64],
+    iterations: int = 30,
+) -> tuple[float, float] | None:
+    """As :func:`_fit_beam`, one beam seen in K channels: ``obs``, ``room``, ``cens``
+    are K x N (channel k's rise, room and clipping at pixels (x, y)); each channel has
+    its own ``b_k + A_k exp(-d^2 / 2 s_k^2)`` about the shared centre (a codec blurs
+    colour planes differently). ``start`` is (u, v, then ln A_k, ln s_k, b_k per
+    channel). Returns the centre (u, v), or None if the normal equations are singular."""
+    k, n = obs.shape
+    p = 2 + 3 * k
+    lo = np.full(p, -np.inf)
+    hi = np.full(p, np.inf)
+    lo[2:] = np.tile((math.log(1e-3), math.log(0.3), -0.5), k)
+    hi[2::3], hi[4::3] = math.log(100.0), 0.5
+    hi[3::3] = np.log(4 * np.exp(start[3::3]) + 8)
+    chan = np.arange(k)
+    ca, cs, cb = 2 + 3 * chan, 3 + 3 * chan, 4 + 3 * chan
+    # channel j's Jacobian has 5 non-zero columns (u, v, its A, s, b): the normal
+    # equations are summed from K 5 x 5 blocks at these places of the p x p matrix
+    cols = np.stack([np.zeros(k, np.int64), np.ones(k, np.int64), ca, cs, cb], axis=1)
+    h_at = (cols[:, :, None] * p + cols[:, None, :]).ravel()
+    g_at = cols.ravel()
+    jac = np.empty((5, k, n))
+
+    def normal(
+        t: NDArray[np.float64],
+    ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
+        """The cost, J^T J and J^T r at parameters ``t``."""
+        dx, dy = x - t[0], y - t[1]
+        d2 = dx * dx + dy * dy
+        inv = np.exp(-2.0 * t[cs])
+        g = np.exp(d2[None, :] * (-0.5 * inv[:, None]) + t[ca][:, None])
+        pred = g + t[cb][:, None]
+        gi = g * inv[:, None]
+        jac[0], jac[1], jac[2], jac[3], jac[4] = gi * dx, gi * dy, g, gi * d2, 1.0
+        res = obs - pred
+        if any_c:
+            over = cens & (pred >= room)
+            under = cens & ~over
+            res[under] = room[under] - pred[under]
+            res[over] = 0.0
+            jac[:, over] = 0.0
+        hb = np.einsum("ikn,jkn->kij", jac, jac)
+        gb = np.einsum("ikn,kn->ki", jac, res)
+        h = np.asarray(np.bincount(h_at, hb.ravel(), p * p), np.float64).reshape(p, p)
+        grad = np.asarray(np.bincount(g_at, gb.ravel(), p), np.float64)
+        return float((res * res).sum()), h, grad
+
+    any_c = bool(cens.any())
+    th = np.clip(start, lo, hi)
+    cost, h, grad = normal(th)
+    lam = 1e-3
+    for _ in range(iterations):
+        try:
+            step = np.linalg.solve(h + lam * np.diag(np.diag(h) + 1e-9), grad)
+        except np.linalg.LinAlgError:
+            return None
+        cand = th + step
+        if np.all(np.isfinite(cand)) and np.all(cand >= lo) and np.all(cand <= hi):
+            c2, h2, g2 = normal(cand)
+            if c2 < cost:
+                th, cost, h, grad, lam = cand, c2, h2, g2, lam * 0.3
+                if float(np.abs(step[:2]).max()) < 0.05:
+                    break
+                continue
+        lam *= 10.0
+        if lam > 1e6:
+            break
+    return float(th[0]), float(th[1])
+
+
 class ColourSpotDetector:
     """Finds the laser spot in successive BGR frames of one camera (module docstring).
 
@@ -244,6 +324,8 @@ class ColourSpotDetector:
             when darker content nearby refreshes the model.
         peak_margin: grey levels the blob's laser-channel peak may lie below the
             highest level seen on the screen (255: off).
+        beam_channels: channels the "beam" position fits: 3 (the laser channel and the
+            two others, about one centre) or 1 (the laser channel alone).
     """
 
     def __init__(
@@ -279,6 +361,7 @@ class ColourSpotDetector:
         fringe_ratio: float = 1.15,
         hold_spot: bool = True,
         peak_margin: int = 3,
+        beam_channels: int = 3,
     ) -> None:
         if colour not in COLOURS:
             raise ValueError(f"colour must be one of {', '.join(COLOURS)}, got {colour!r}")
@@ -347,6 +430,10 @@ class ColourSpotDetector:
         if not 0 <= peak_margin <= 255:
             raise ValueError(f"need peak_margin 0..255, got {peak_margin}")
         self.peak_margin = peak_margin
+        if beam_channels not in (1, 3):
+            raise ValueError(f"need beam_channels 1 or 3, got {beam_channels}")
+        self.beam_channels = beam_channels
+        self._kernels: dict[int, NDArray[np.uint8]] = {}  # elliptic kernels by size
         self._top: dict[int, int] = {}  # laser channel -> highest level seen on the screen
         self._need = confirm  # frames the current track needs before it is reported
         self._run = 0  # frames in a row with a spot, each near the one before
@@ -845,22 +932,39 @@ class ColourSpotDetector:
         channel's rise over the model in linear light, ``b + A exp(-d^2 / 2 s^2)``, where
         clipped pixels say only that the beam filled the room the content left there
         (censored), so neither the content under the spot nor where it clips bends the
-        centre. Levenberg-Marquardt from the blob's centroid (pu, pv). None if the fit
-        fails or moves further than the blob's radius."""
+        centre; with ``beam_channels`` 3 the other channels' rise too, each with its own
+        A, s, b (:func:`_fit_beams`). Levenberg-Marquardt from the blob's centroid
+        (pu, pv). None if the fit fails or moves further than the blob's radius."""
         area = int(np.count_nonzero(sel))
         r = max(1.5, math.sqrt(area / math.pi))
-        size = 2 * math.ceil(r + 4) + 1
-        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+        size = 2 * math.ceil(r + 3) + 1
+        if size not in self._kernels:
+            self._kernels[size] = np.asarray(
+                cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size)), np.uint8
+            )
+        ker = self._kernels[size]
         grown = cv2.dilate(sel.view(np.uint8), ker).view(bool)
         ys, xs = np.nonzero(grown)
-        now = win[:, :, c][grown]
-        was = _LIN[model[:, :, c][grown]]
+        if self.beam_channels == 1:
+            now, was = win[:, :, c][grown][None, :], _LIN[model[:, :, c][grown]][None, :]
+        else:  # all three, in BGR order (the fit treats its channels alike)
+            now, was = win[grown].T, _LIN[model[grown].T]
         cens = now >= self.saturated
         room = 1.0 - was
         rise = _LIN[now] - was
-        peak = 2.0 * float(np.median(room[cens])) if cens.any() else float(rise.max())
-        start = np.array([pu, pv, math.log(max(peak, 1e-3)), math.log(r), 0.0])
-        fit = _fit_beam(xs.astype(np.float64), ys.astype(np.float64), rise, room, cens, start)
+        start = [pu, pv]
+        for j in range(now.shape[0]):
+            rc = room[j][cens[j]]  # twice the censored rooms' (upper) median, to start
+            if rc.size:
+                peak = 2.0 * float(np.partition(rc, rc.size // 2)[rc.size // 2])
+            else:
+                peak = float(rise[j].max())
+            start += [math.log(max(peak, 1e-3)), math.log(r), 0.0]
+        x, y = xs.astype(np.float64), ys.astype(np.float64)
+        if now.shape[0] == 1:
+            fit = _fit_beam(x, y, rise[0], room[0], cens[0], np.array(start))
+        else:
+            fit = _fit_beams(x, y, rise, room, cens, np.array(start))
         if fit is None or math.hypot(fit[0] - pu, fit[1] - pv) > r + 1.0:
             return None
         return fit

@@ -47,7 +47,7 @@ METHOD_OPTIONS: dict[str, dict[str, type]] = {
         "change_fraction": float, "track_px": float, "busy_gain": float, "fringe": float,
         "max_darker": float, "min_cross": float, "busy_events": int, "position": str,
         "new_margin": int, "confirm": int, "busy_confirm": int, "min_rise": float,
-        "fringe_ratio": float, "hold_spot": bool, "peak_margin": int,
+        "fringe_ratio": float, "hold_spot": bool, "peak_margin": int, "beam_channels": int,
     },
     "white-core": {
         "step": int, "rise": int, "core": int, "saturated": int, "min_area": int,
