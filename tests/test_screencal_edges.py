@@ -17,7 +17,12 @@ from omnidev.screencal.features import (
     edge_points,
     screen_region,
 )
-from omnidev.screencal.transform import RadialMap, _radial_apply, residual_predictability
+from omnidev.screencal.transform import (
+    RadialMap,
+    _radial_apply,
+    invert,
+    residual_predictability,
+)
 from omnidev.sim.screen_scenes import ScreenScene
 from tests.screen_scene import detect, heldout_errors, scene
 
@@ -192,3 +197,20 @@ def test_edge_profiles_reach_into_the_corners(monkeypatch: pytest.MonkeyPatch) -
     monkeypatch.setattr(calibration, "EDGE_ENDS", 0.06)
     far = heldout_errors(sc, detect_screen(caps[0], caps[1], caps[2], layout=grid))
     assert float(far.max()) > 1.5
+
+
+def test_invert_is_nan_without_a_warning_where_the_map_folds() -> None:
+    """Newton's inversion of a map whose Jacobian is singular at a point: NaN there (the
+    callers check for finite points), the exact inverse elsewhere, and no RuntimeWarning
+    (it reached the CLI's stderr as "divide by zero")."""
+
+    def fold(uv: np.ndarray) -> np.ndarray:  # x = u for u > 0, flat (0) for u <= 0; y = v
+        return np.stack([np.maximum(uv[:, 0], 0.0), uv[:, 1]], axis=1)
+
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = invert(fold, np.array([[2.0, 1.0], [3.0, 2.0]]), np.array([[1.5, 0.0], [-5.0, 0.0]]))
+    np.testing.assert_allclose(out[0], [2.0, 1.0], atol=1e-6)
+    assert not np.isfinite(out[1]).all()

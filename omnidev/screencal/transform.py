@@ -428,15 +428,17 @@ class RadialMap:
 
 
 def invert(fn: ImageToScreen, xy: FloatArray, uv0: FloatArray, iterations: int = 20) -> FloatArray:
-    """Image points that ``fn`` maps to screen ``xy``, by Newton's method from ``uv0``."""
+    """Image points that ``fn`` maps to screen ``xy``, by Newton's method from ``uv0``;
+    NaN where ``fn`` folds (a singular Jacobian: callers check for finite points)."""
     uv = np.asarray(uv0, np.float64).copy()
     e = 1e-3
-    for _ in range(iterations):
-        f0 = fn(uv) - xy
-        fu = (fn(uv + np.array([e, 0.0])) - f0 - xy) / e
-        fv = (fn(uv + np.array([0.0, e])) - f0 - xy) / e
-        det = fu[:, 0] * fv[:, 1] - fu[:, 1] * fv[:, 0]
-        du = (f0[:, 0] * fv[:, 1] - f0[:, 1] * fv[:, 0]) / det
-        dv = (fu[:, 0] * f0[:, 1] - fu[:, 1] * f0[:, 0]) / det
-        uv -= np.stack([du, dv], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(iterations):
+            f0 = fn(uv) - xy
+            fu = (fn(uv + np.array([e, 0.0])) - f0 - xy) / e
+            fv = (fn(uv + np.array([0.0, e])) - f0 - xy) / e
+            det = fu[:, 0] * fv[:, 1] - fu[:, 1] * fv[:, 0]
+            du = (f0[:, 0] * fv[:, 1] - f0[:, 1] * fv[:, 0]) / det
+            dv = (fu[:, 0] * f0[:, 1] - fu[:, 1] * f0[:, 0]) / det
+            uv -= np.stack([du, dv], axis=1)
     return uv
