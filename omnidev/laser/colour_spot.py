@@ -138,55 +138,7 @@ def _fit_beam(
     from ``start``, kept inside bounds (A 1e-3..100, s 0.3 px .. 4 x its start + 8 px,
     |b| <= 0.5); stops when the centre moves less than 0.05 px. Returns the centre
     (u, v) of the best fit found, or None if the normal equations are singular."""
-    lo = np.array([-np.inf, -np.inf, math.log(1e-3), math.log(0.3), -0.5])
-    hi = np.array([np.inf, np.inf, math.log(100.0), math.log(4 * math.exp(start[3]) + 8), 0.5])
-
-    n = x.size
-    cidx = np.flatnonzero(cens)
-    room_c = room[cidx]
-
-    def resid(t: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        dx, dy = x - t[0], y - t[1]
-        d2 = dx * dx + dy * dy
-        inv = math.exp(-2.0 * t[3])
-        g = np.exp(d2 * (-0.5 * inv) + t[2])
-        p = g + t[4]
-        res = obs - p
-        pc = p[cidx]
-        over = pc >= room_c
-        res[cidx] = np.where(over, 0.0, room_c - pc)
-        gi = g * inv
-        j = np.empty((n, 5))
-        j[:, 0] = gi * dx
-        j[:, 1] = gi * dy
-        j[:, 2] = g
-        j[:, 3] = gi * d2
-        j[:, 4] = 1.0
-        j[cidx[over]] = 0.0
-        return res, j
-
-    th = np.clip(start, lo, hi)
-    res, jac = resid(th)
-    cost, lam = float(res @ res), 1e-3
-    for _ in range(iterations):
-        h = jac.T @ jac
-        try:
-            step = np.linalg.solve(h + lam * np.diag(np.diag(h) + 1e-9), jac.T @ res)
-        except np.linalg.LinAlgError:
-            return None
-        cand = th + step
-        if np.all(np.isfinite(cand)) and np.all(cand >= lo) and np.all(cand <= hi):
-            r2, j2 = resid(cand)
-            c2 = float(r2 @ r2)
-            if c2 < cost:
-                th, res, jac, cost, lam = cand, r2, j2, c2, lam * 0.3
-                if float(np.abs(step[:2]).max()) < 0.05:
-                    break
-                continue
-        lam *= 10.0
-        if lam > 1e6:
-            break
-    return float(th[0]), float(th[1])
+    return _fit_beams(x, y, obs[None], room[None], cens[None], start, iterations)
 
 
 def _fit_beams(
