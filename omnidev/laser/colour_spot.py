@@ -913,10 +913,7 @@ class ColourSpotDetector:
                 peak = float(rise[j].max())
             start += [math.log(max(peak, 1e-3)), math.log(r), 0.0]
         x, y = xs.astype(np.float64), ys.astype(np.float64)
-        if now.shape[0] == 1:
-            fit = _fit_beam(x, y, rise[0], room[0], cens[0], np.array(start))
-        else:
-            fit = _fit_beams(x, y, rise, room, cens, np.array(start))
+        fit = _fit_beams(x, y, rise, room, cens, np.array(start))
         if fit is None or math.hypot(fit[0] - pu, fit[1] - pv) > r + 1.0:
             return None
         return fit
