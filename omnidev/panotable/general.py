@@ -675,7 +675,10 @@ def fit_general(
             same held-out landmarks beyond chance (its mean squared held-out
             residual lower by more than :data:`SIGNIFICANCE` standard errors of
             the paired per-landmark difference). A free polynomial whose twin
-            through the pole was tried is kept only by the second rule.
+            through the pole was tried is kept only by the second rule. Last, a twin
+            of the kept order with fewer radial parameters (the same terms but the
+            radial function) whose held-out RMS is no larger replaces it, unless the
+            kept one is a polynomial through the pole.
         center_prior_px: the 1-sigma uncertainty of ``image_center`` when it was
             measured (a detected center); None lets the landmarks alone decide.
 
