@@ -183,14 +183,15 @@ def _fit_beams(
         gi = g * inv[:, None]
         jac[0], jac[1], jac[2], jac[3], jac[4] = gi * dx, gi * dy, g, gi * d2, 1.0
         res = obs - pred
-        if any_c:
+        if any_c:  # censored: no residual once the beam fills the room, else the shortfall
             over = cens & (pred >= room)
             under = cens & ~over
             res[under] = room[under] - pred[under]
             res[over] = 0.0
             jac[:, over] = 0.0
-        hb = np.einsum("ikn,jkn->kij", jac, jac)
-        gb = np.einsum("ikn,kn->ki", jac, res)
+        jk = jac.transpose(1, 0, 2)  # K x 5 x N
+        hb = jk @ jk.transpose(0, 2, 1)
+        gb = jk @ res[:, :, None]
         h = np.asarray(np.bincount(h_at, hb.ravel(), p * p), np.float64).reshape(p, p)
         grad = np.asarray(np.bincount(g_at, gb.ravel(), p), np.float64)
         return float((res * res).sum()), h, grad
