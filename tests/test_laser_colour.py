@@ -20,7 +20,7 @@ from omnidev.daemon.config import parse_config
 from omnidev.errors import TrackerError
 from omnidev.evaluation.framework import load_task
 from omnidev.filters import OneEuroFilter
-from omnidev.laser.colour_spot import ColourSpotDetector, _fit_beam, _fit_beams
+from omnidev.laser.colour_spot import ColourSpotDetector, _fit_beams
 from omnidev.sim.screen import Spot, render, screen_rig
 from omnidev.sim.screen_content import slide
 from omnidev.tracking import open_tracker
@@ -202,11 +202,12 @@ def test_beam_fit_is_not_bent_by_the_content_under_the_spot() -> None:
     blob_u = float(xx[cens].mean())
     assert blob_u - cu > 1.0  # the clipped blob reaches further over the bright page
     start = np.array([blob_u, float(yy[cens].mean()), math.log(2.0), math.log(3.0), 0.0])
-    fit = _fit_beam(xx.ravel(), yy.ravel(), obs.ravel(), room.ravel(), cens.ravel(), start)
+    one = (room.reshape(1, -1), cens.reshape(1, -1))  # one channel: K = 1
+    fit = _fit_beams(xx.ravel(), yy.ravel(), obs.reshape(1, -1), *one, start)
     assert fit is not None  # it stops once the centre moves < 0.05 px: measured 0.045 off
     assert math.hypot(fit[0] - cu, fit[1] - cv_) < 0.05
     noisy = obs + np.random.default_rng(3).normal(0.0, 0.01, obs.shape)
-    fit = _fit_beam(xx.ravel(), yy.ravel(), noisy.ravel(), room.ravel(), cens.ravel(), start)
+    fit = _fit_beams(xx.ravel(), yy.ravel(), noisy.reshape(1, -1), *one, start)
     assert fit is not None and math.hypot(fit[0] - cu, fit[1] - cv_) < 0.1
 
 
@@ -229,7 +230,9 @@ def test_beam_fit_in_three_channels_where_the_laser_channel_has_little_room() ->
     e1, e3 = [], []
     for seed in range(20):
         obs = np.minimum(room, light) + np.random.default_rng(seed).normal(0, 0.03, light.shape)
-        f1 = _fit_beam(x, y, obs[0].ravel(), room[0].ravel(), cens[0].ravel(), start1)
+        f1 = _fit_beams(
+            x, y, obs[:1].reshape(1, -1), room[:1].reshape(1, -1), cens[:1].reshape(1, -1), start1
+        )
         f3 = _fit_beams(x, y, obs.reshape(3, -1), room.reshape(3, -1), cens.reshape(3, -1), start3)
         assert f1 is not None and f3 is not None
         e1.append(math.hypot(f1[0] - cu, f1[1] - cv_))

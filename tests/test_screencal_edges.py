@@ -4,6 +4,8 @@ docs/screen-calibration.md."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -206,8 +208,6 @@ def test_invert_is_nan_without_a_warning_where_the_map_folds() -> None:
 
     def fold(uv: np.ndarray) -> np.ndarray:  # x = u for u > 0, flat (0) for u <= 0; y = v
         return np.stack([np.maximum(uv[:, 0], 0.0), uv[:, 1]], axis=1)
-
-    import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -123,24 +123,6 @@ def _median(x: NDArray[Any]) -> float:
     return (int(part[n // 2 - 1]) + int(part[n // 2])) / 2
 
 
-def _fit_beam(
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    obs: NDArray[np.float64],
-    room: NDArray[np.float64],
-    cens: NDArray[np.bool_],
-    start: NDArray[np.float64],
-    iterations: int = 30,
-) -> tuple[float, float] | None:
-    """Levenberg-Marquardt fit of a round Gaussian beam ``b + A exp(-d^2 / 2 s^2)`` to
-    the rise ``obs`` (linear light) at pixels (x, y); where ``cens`` (the channel
-    clipped) the rise is only known to be >= ``room``. Parameters (u, v, ln A, ln s, b)
-    from ``start``, kept inside bounds (A 1e-3..100, s 0.3 px .. 4 x its start + 8 px,
-    |b| <= 0.5); stops when the centre moves less than 0.05 px. Returns the centre
-    (u, v) of the best fit found, or None if the normal equations are singular."""
-    return _fit_beams(x, y, obs[None], room[None], cens[None], start, iterations)
-
-
 def _fit_beams(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -150,11 +132,14 @@ def _fit_beams(
     start: NDArray[np.float64],
     iterations: int = 30,
 ) -> tuple[float, float] | None:
-    """As :func:`_fit_beam`, one beam seen in K channels: ``obs``, ``room``, ``cens``
-    are K x N (channel k's rise, room and clipping at pixels (x, y)); each channel has
-    its own ``b_k + A_k exp(-d^2 / 2 s_k^2)`` about the shared centre (a codec blurs
-    colour planes differently). ``start`` is (u, v, then ln A_k, ln s_k, b_k per
-    channel). Returns the centre (u, v), or None if the normal equations are singular."""
+    """Levenberg-Marquardt fit of one round Gaussian beam seen in K channels: channel k's
+    rise ``obs[k]`` (linear light) at pixels (x, y) is ``b_k + A_k exp(-d^2 / 2 s_k^2)``
+    about the shared centre (a codec blurs colour planes differently); where ``cens[k]``
+    (the channel clipped) the rise is only known to be >= ``room[k]``. ``obs``, ``room``,
+    ``cens`` are K x N. Parameters (u, v, then ln A_k, ln s_k, b_k per channel) from
+    ``start``, kept inside bounds (A 1e-3..100, s 0.3 px .. 4 x its start + 8 px,
+    |b| <= 0.5); stops when the centre moves less than 0.05 px. Returns the centre
+    (u, v) of the best fit found, or None if the normal equations are singular."""
     k, n = obs.shape
     p = 2 + 3 * k
     lo = np.full(p, -np.inf)

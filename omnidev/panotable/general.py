@@ -752,10 +752,8 @@ def fit_general(
         scores.append(score)
         if score.heldout_rms_px < best_so_far * (1 - 0.5 * tolerance):
             worse = 0
-        elif len(scores) < 2 or _shape(terms) != _shape(
-            scores[-2].terms
-        ):  # a radial function alone says nothing about the terms after it
-            worse += 1
+        elif len(scores) < 2 or _shape(terms) != _shape(scores[-2].terms):
+            worse += 1  # a radial function alone says nothing about the terms after it
         if worse >= 2:  # two larger orders in a row bought nothing: stop
             break
     cv = np.array([s.heldout_rms_px for s in scores])
