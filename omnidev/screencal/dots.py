@@ -25,7 +25,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from omnidev.errors import CalibrationError
-from omnidev.screencal.features import MIN_CONTRAST, BorderPolygon, binarize, to_gray
+from omnidev.screencal.features import (
+    MIN_CONTRAST,
+    BorderPolygon,
+    at_exposure,
+    binarize,
+    to_gray,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -246,13 +252,22 @@ def _refine(
 
 
 def _normalised(
-    gray: NDArray[np.uint8], white: NDArray[np.uint8], black: NDArray[np.uint8]
+    gray: NDArray[np.uint8],
+    white: NDArray[np.uint8],
+    black: NDArray[np.uint8],
+    black_gain: float = 1.0,
 ) -> NDArray[np.float32]:
     """(H, W, 2): the dot image's rise over the black image and the white image's
-    (grey levels), for :func:`_centroid`."""
+    (grey levels), for :func:`_centroid`. The white image's is taken with the black
+    image at the white image's exposure (``black_gain``,
+    :func:`~omnidev.screencal.features.exposure_gain`): where auto-exposure made the
+    black capture the brighter (a projector's dim corner), ``w - b`` fell to zero and
+    the dots' pixels there weighed nothing (scene 54076 of issue 12: a dot 3 image px
+    off)."""
     w_img = to_gray(white).astype(np.float32)
-    b_img = to_gray(black).astype(np.float32)
-    return np.stack([gray.astype(np.float32) - b_img, w_img - b_img], axis=-1)
+    b = to_gray(black)
+    b_img = b.astype(np.float32)
+    return np.stack([gray.astype(np.float32) - b_img, w_img - at_exposure(b, black_gain)], axis=-1)
 
 
 def _corner_homography(border: BorderPolygon, screen_size: tuple[int, int]) -> FloatArray:
@@ -452,6 +467,7 @@ def _find_by_model(
     screen_dots: FloatArray,
     screen_size: tuple[int, int],
     subpixel: bool,
+    black_gain: float,
 ) -> DotDetection:
     pts = blobs.centroid
     image_size = (gray.shape[1], gray.shape[0])
@@ -461,7 +477,7 @@ def _find_by_model(
     hg = float(np.nanmedian(np.hypot(*(g[1:] - g[:-1]).reshape(-1, 2).T))) if rows > 1 else 8
     wg = wg if math.isfinite(wg) else 8.0
     hg = hg if math.isfinite(hg) else 8.0
-    norm = _normalised(gray, white, black)
+    norm = _normalised(gray, white, black, black_gain)
     maps = _edge_maps(gray)
     centers = np.full((rows * cols, 2), np.nan)
     radius = np.full(rows * cols, np.nan)
@@ -498,6 +514,7 @@ def find_dots(
     *,
     subpixel: bool = True,
     index: str = "model",
+    black_gain: float = 1.0,
 ) -> DotDetection:
     """Find the dot centres (sec. 5.2.2b) in image pixels.
 
@@ -516,7 +533,8 @@ def find_dots(
     even when whole rows or columns are occluded. Walking out from C0 ring by ring,
     each rough CMP cross (eq. 5.3 spacing, moved by its found neighbours' offsets)
     takes the component nearest to it within the search range; the DTM then fixes
-    the centre. Missing dots are NaN in ``centers``.
+    the centre. Missing dots are NaN in ``centers``. ``black_gain``: the white
+    capture's exposure over the black one's (:func:`_normalised`).
     """
     rows, cols = (n, n) if isinstance(n, int) else (int(n[0]), int(n[1]))
     if index not in ("model", "walk"):
@@ -531,7 +549,17 @@ def find_dots(
         )
     if index == "model":
         return _find_by_model(
-            gray, white, black, blobs, border, rows, cols, screen_dots, screen_size, subpixel
+            gray,
+            white,
+            black,
+            blobs,
+            border,
+            rows,
+            cols,
+            screen_dots,
+            screen_size,
+            subpixel,
+            black_gain,
         )
     centre = border.vertices[[1, 3, 5, 7]].mean(axis=0)
     pts = blobs.centroid
@@ -562,7 +590,7 @@ def find_dots(
     k0 = int(np.argmin(np.hypot(*(screen_dots - s0).T)))
     r0, q0 = divmod(k0, cols)
 
-    norm = _normalised(gray, white, black)
+    norm = _normalised(gray, white, black, black_gain)
     maps = _edge_maps(gray)
 
     centers = np.full((rows, cols, 2), np.nan)

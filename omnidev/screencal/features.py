@@ -244,6 +244,7 @@ class ScreenRegion:
     mask: NDArray[np.bool_]
     contrast: float
     touches: tuple[str, ...]
+    black_gain: float = 1.0
 
 
 def _largest(
@@ -306,8 +307,11 @@ def screen_region(white: NDArray[np.uint8], black: NDArray[np.uint8]) -> ScreenR
     # the screen: where the difference, in linear light, exceeds half of the screen's
     # own level nearby (the level varies over the screen: hot spot, viewing angle)
     lin = (np.arange(256) / 255.0) ** 2.2
-    dl = (lin[to_gray(white)] - lin[to_gray(black)]).astype(np.float32)
     core = _largest(first.astype(np.uint8))
+    wg, bg = to_gray(white), to_gray(black)
+    gain = exposure_gain(wg, bg, core)
+    dl = (lin[wg] - gain * lin[bg]).astype(np.float32)
+    dl[bg >= CLIPPED] = 0.0  # clipped in the black image: how much brighter it was is unknown
     sigma = 0.04 * float(np.hypot(*d.shape))
     for _ in range(2):
         c32 = core.astype(np.float32)
@@ -341,7 +345,43 @@ def screen_region(white: NDArray[np.uint8], black: NDArray[np.uint8]) -> ScreenR
         )
         if np.count_nonzero(edge) > max(3, 0.03 * len(edge))
     )
-    return ScreenRegion(mask, contrast, touches)
+    return ScreenRegion(mask, contrast, touches, gain)
+
+
+CLIPPED = 250  # grey level: a pixel this bright may be clipped
+
+
+def exposure_gain(
+    white: NDArray[np.uint8], black: NDArray[np.uint8], screen: NDArray[np.bool_]
+) -> float:
+    """How much brighter the room is in the white image than in the black one, in
+    linear light (grey levels undone with gamma 2.2): the median ratio over the pixels
+    away from the ``screen`` mask (grey, H x W) that are neither dark nor clipped in
+    either image; 1 when fewer than 2 % of the picture qualify.
+
+    Auto-exposure sets the two captures differently (the black screen lets the
+    camera open up): the room then changes between them, and near a dim part of the
+    screen the room can change more than the screen. Scaled by this gain, the black
+    image's room matches the white image's and the difference is the screen's."""
+    h, w = screen.shape
+    k = max(3, int(0.02 * math.hypot(w, h))) | 1
+    near = cv2.dilate(screen.astype(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
+    ok = ~near & (white >= 16) & (white < CLIPPED) & (black >= 16) & (black < CLIPPED)
+    if np.count_nonzero(ok) < 0.02 * screen.size:
+        return 1.0
+    lin = (np.arange(256) / 255.0) ** 2.2
+    ratio = lin[white[ok]] / lin[black[ok]]
+    return float(np.clip(np.median(ratio), 0.2, 5.0))
+
+
+def at_exposure(image: NDArray[np.uint8], gain: float) -> NDArray[np.float32]:
+    """Grey image (uint8) as it would read with ``gain`` times the light (gamma 2.2,
+    float32 grey levels, not clipped at 255); the image itself when ``gain`` is 1."""
+    if gain == 1.0:
+        return image.astype(np.float32)
+    lut = (255.0 * (gain * (np.arange(256) / 255.0) ** 2.2) ** (1 / 2.2)).astype(np.float32)
+    out: NDArray[np.float32] = lut[image]
+    return out
 
 
 def _side_fit(pts: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
@@ -475,7 +515,10 @@ def border_from_region(region: ScreenRegion) -> BorderPolygon:
 
 
 def border_from_edges(
-    white: NDArray[np.uint8], black: NDArray[np.uint8], border: BorderPolygon
+    white: NDArray[np.uint8],
+    black: NDArray[np.uint8],
+    border: BorderPolygon,
+    black_gain: float = 1.0,
 ) -> BorderPolygon:
     """``border`` refitted to the sub-pixel edge points (:func:`edge_points`) found
     along it: each side a robust quadratic through its points, corners where the fits
@@ -490,7 +533,7 @@ def border_from_edges(
     each profile's own inside and outside levels and do not cut in. Where a side has
     fewer than six edge points, ``border`` is returned as it is.
     """
-    sides = edge_points(white, black, border)
+    sides = edge_points(white, black, border, black_gain=black_gain)
     v = border.vertices
     quad = v[[0, 2, 4, 6]]
     coefs = []
@@ -517,6 +560,7 @@ def edge_points(
     strip: float = 0.4,
     strip_lines: int = 9,
     ends: float = 0.06,
+    black_gain: float = 1.0,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Sub-pixel points on the lit area's top, right, bottom and left edges: (K, 4)
     arrays of (u, v, nu, nv), image px and the outward unit normal.
@@ -537,7 +581,7 @@ def edge_points(
     """
     w = (to_gray(white).astype(np.float32) / 255.0) ** gamma
     b = (to_gray(black).astype(np.float32) / 255.0) ** gamma
-    d = np.ascontiguousarray(w - b)
+    d = np.ascontiguousarray(w - black_gain * b)
     v = border.vertices
     centre = v.mean(axis=0)
     offs = np.arange(-5.0, 5.0001, 0.25)
