@@ -122,6 +122,51 @@ def test_residual_correction_is_kept_only_for_a_field_the_neighbours_predict() -
         RadialMap.fit(noisy, xy, (1280, 720), lattice, (7, 9), found, edge_offset="x")
 
 
+def _lattice_image(xy: np.ndarray) -> np.ndarray:
+    """Screen px -> image px of :func:`_lattice`'s camera, for any screen points."""
+    c = np.array([580.0, 359.2])  # the image of the lattice's centre
+    d = (100 + xy * np.array([0.5, 0.48]) - c) / 600
+    return np.asarray(c + d * (1 - 0.08 * (d**2).sum(axis=1))[:, None] * 600, np.float64)
+
+
+def test_a_side_scattering_more_than_the_dots_weighs_less() -> None:
+    # 28 edge points per side; the top side's scattered by 0.6 image px along its normal
+    # (a codec's blocks), the others by 0.03, the dots by 0.05: at the fixed weight the
+    # noisy side bends the map 0.30-0.57 screen px off along the border (5 seeds), with
+    # each side weighed by its scatter 0.15-0.30 (mean 0.21 against 0.39)
+    uv, xy, lattice = _lattice()
+    assert np.allclose(_lattice_image(xy), uv)
+    t = np.linspace(0.03, 0.97, 28)
+    s = np.linspace(0.0, 1.0, 200)
+    top, bottom = np.c_[s * 1919, 0 * s], np.c_[s * 1919, 0 * s + 1079]
+    left, right = np.c_[0 * s, s * 1079], np.c_[0 * s + 1919, s * 1079]
+    border = np.concatenate([top, bottom, left, right])
+    worst: dict[bool, list[float]] = {True: [], False: []}
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        sides = []
+        plan = [(1, -0.5, -1, 0.6), (0, 1919.5, 1, 0.03), (1, 1079.5, 1, 0.03), (0, -0.5, -1, 0.03)]
+        for axis, value, out, noise in plan:  # top (noisy), right, bottom, left
+            p = np.zeros((len(t), 2))
+            p[:, axis] = value
+            p[:, 1 - axis] = t * (1920 if axis == 1 else 1080)
+            q = p.copy()
+            q[:, axis] += out
+            a, b = _lattice_image(p), _lattice_image(q)
+            nrm = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
+            a = a + rng.normal(0, noise, (len(a), 1)) * nrm
+            sides.append((np.c_[a, nrm], axis, value))
+        noisy = uv + rng.normal(0, 0.05, uv.shape)
+        for scatter in (True, False):
+            m = RadialMap.fit(
+                noisy, xy, (1280, 720), lattice, (7, 9), np.ones(len(xy), bool),
+                edges=sides, edge_scatter=scatter,
+            )  # fmt: skip
+            worst[scatter].append(float(np.hypot(*(m(_lattice_image(border)) - border).T).max()))
+    assert all(a < b for a, b in zip(worst[True], worst[False], strict=True))
+    assert float(np.mean(worst[True])) < 0.7 * float(np.mean(worst[False]))
+
+
 def test_a_side_with_no_edge_gives_no_points_and_no_error() -> None:
     # a lit rectangle whose polygon's top side lies 20 px above its top edge: no profile
     # there crosses an edge; the other sides give their points

@@ -294,6 +294,7 @@ class RadialMap:
         edge_weight: float = 0.2,
         edge_offset: str = "side",
         edge_tie: float = 0.15,
+        edge_scatter: bool = True,
         terms: int | None = None,
     ) -> RadialMap:
         """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2); ``n``:
@@ -310,7 +311,12 @@ class RadialMap:
         the measured edges sat 0.1-0.3 image px off the truth, differently on each
         side. ``edge_tie`` (image px; 0: free): the sides' offsets are tied to their
         mean as if each difference were measured to within ``edge_tie``, weighed like
-        a dot coordinate measured to within ``DOT_NOISE_PX``.
+        a dot coordinate measured to within ``DOT_NOISE_PX``. ``edge_scatter``: after
+        the fit, each side's weight is lowered to the dots' mean squared residual
+        over that side's (inverse-variance weights; never above ``edge_weight``) and
+        the fit repeated: a codec's blocks can scatter a side's points by 0.3-0.6
+        image px (h264 at 640x480 on issue 12's scenes), and a side that noisy
+        bent the model near the corners by more than the dots allow.
 
         ``correct``: add the bilinear interpolation of the dot residuals (True), not
         (False), or ``"auto"`` (default): only when the residuals are a field the
@@ -334,7 +340,7 @@ class RadialMap:
             raise ValueError(f"edge_offset {edge_offset!r}: 'side' or 'common'")
         if correct not in (True, False, "auto"):
             raise ValueError(f"correct {correct!r}: True, False or 'auto'")
-        weight = math.sqrt(edge_weight)
+        weights = np.full(len(edge_sets), math.sqrt(edge_weight))
         n_off = len(edge_sets) if edge_offset == "side" else min(len(edge_sets), 1)
         # a dot coordinate's noise (DOT_NOISE_PX image px) in screen px: the tie weighs
         # like a measurement of that quality
@@ -347,7 +353,7 @@ class RadialMap:
             for i, (e, axis, value) in enumerate(edge_sets):  # edge points land on their edge
                 delta = p[13 + min(i, n_off - 1)]  # shifted along the normal (image px)
                 pts = e[:, :2] + delta * e[:, 2:]
-                parts.append(weight * (_radial_apply(pp, pts, scale)[:, axis] - value))
+                parts.append(weights[i] * (_radial_apply(pp, pts, scale)[:, axis] - value))
             if n_off > 1 and edge_tie > 0:  # the sides' offsets differ by ~edge_tie
                 d = p[13 : 13 + n_off]
                 parts.append((d - d.mean()) * (tie_unit / edge_tie))
@@ -365,6 +371,19 @@ class RadialMap:
 
             p = levenberg_marquardt(cost, p)
             p[2 + k : 5] = 0.0
+        if edge_scatter and edge_sets:  # a side scattering more than the dots weighs less
+            r = resid(p, terms) * sx
+            at = 2 * len(uv)
+            dot_power = float(np.mean(r[:at] ** 2))
+            for i, (e, _, _) in enumerate(edge_sets):
+                side_power = float(np.mean((r[at : at + len(e)] / weights[i]) ** 2))
+                at += len(e)
+                weights[i] = math.sqrt(min(edge_weight, dot_power / max(side_power, 1e-300)))
+
+            def refit(q: FloatArray) -> FloatArray:
+                return resid(q, terms)
+
+            p = levenberg_marquardt(refit, p)
         p = p[:13]
         model = cls(p, scale, np.zeros((rows, cols, 2)), lattice)
         if correct:
