@@ -239,6 +239,8 @@ class ScreenRegion:
     difference, holes filled). ``contrast``: that typical difference (grey
     levels, median over the mask). ``touches``: image sides ("left", "top",
     ...) the region touches (the screen is cut by the picture's edge).
+    ``black_gain``: the white capture's exposure over the black one's
+    (:func:`exposure_gain`), by which the black capture was scaled.
     """
 
     mask: NDArray[np.bool_]
@@ -276,7 +278,9 @@ def screen_region(white: NDArray[np.uint8], black: NDArray[np.uint8]) -> ScreenR
     then, in linear light, a pixel is screen where the difference exceeds half of
     the screen's own level nearby (a Gaussian-weighted mean over the core), grown
     from the core twice. A wall point next to the screen cannot join it unless the
-    wall itself changed by half as much as the screen did.
+    wall itself changed by half as much as the screen did. The linear difference is
+    taken with the black image at the white image's exposure (:func:`exposure_gain`);
+    pixels at or above ``CLIPPED`` in the black image are not screen.
     """
     w = to_gray(white).astype(np.int16)
     b = to_gray(black).astype(np.int16)
@@ -357,7 +361,7 @@ def exposure_gain(
     """How much brighter the room is in the white image than in the black one, in
     linear light (grey levels undone with gamma 2.2): the median ratio over the pixels
     away from the ``screen`` mask (grey, H x W) that are neither dark nor clipped in
-    either image; 1 when fewer than 2 % of the picture qualify.
+    either image, held to 0.2-5; 1 when fewer than 2 % of the picture qualify.
 
     Auto-exposure sets the two captures differently (the black screen lets the
     camera open up): the room then changes between them, and near a dim part of the
@@ -531,7 +535,8 @@ def border_from_edges(
     place (9-18 image px off on the tuning scene 50159, 50 px at the glare of 50036;
     refitted, within 1.2 and 3 px); the edge points take the half-level crossing of
     each profile's own inside and outside levels and do not cut in. Where a side has
-    fewer than six edge points, ``border`` is returned as it is.
+    fewer than six edge points, ``border`` is returned as it is. ``black_gain``: as
+    for :func:`edge_points`.
     """
     sides = edge_points(white, black, border, black_gain=black_gain)
     v = border.vertices
@@ -577,7 +582,8 @@ def edge_points(
     sensor noise are averaged out, the edge's curvature over a few px is not seen.
     On the tuning scenes of issue 12 one line left 0.05-0.4 image px of noise per
     point. The profiles are measured twice, the second time centred on the first
-    crossing.
+    crossing. ``black_gain`` scales the black image's linear light first (the white
+    capture's exposure over the black one's, :func:`exposure_gain`).
     """
     w = (to_gray(white).astype(np.float32) / 255.0) ** gamma
     b = (to_gray(black).astype(np.float32) / 255.0) ** gamma
