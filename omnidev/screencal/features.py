@@ -282,8 +282,8 @@ def screen_region(white: NDArray[np.uint8], black: NDArray[np.uint8]) -> ScreenR
     taken with the black image at the white image's exposure (:func:`exposure_gain`);
     pixels at or above ``CLIPPED`` in the black image are not screen.
     """
-    w = to_gray(white).astype(np.int16)
-    b = to_gray(black).astype(np.int16)
+    wg, bg = to_gray(white), to_gray(black)
+    w, b = wg.astype(np.int16), bg.astype(np.int16)
     if w.shape != b.shape:
         raise CalibrationError(f"white image is {w.shape[::-1]}, black image is {b.shape[::-1]}")
     d = w - b
@@ -312,7 +312,6 @@ def screen_region(white: NDArray[np.uint8], black: NDArray[np.uint8]) -> ScreenR
     # own level nearby (the level varies over the screen: hot spot, viewing angle)
     lin = (np.arange(256) / 255.0) ** 2.2
     core = _largest(first.astype(np.uint8))
-    wg, bg = to_gray(white), to_gray(black)
     gain = exposure_gain(wg, bg, core)
     dl = (lin[wg] - gain * lin[bg]).astype(np.float32)
     dl[bg >= CLIPPED] = 0.0  # clipped in the black image: how much brighter it was is unknown

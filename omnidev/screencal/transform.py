@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from functools import partial
 from typing import Protocol
 
 import cv2
@@ -365,11 +366,7 @@ class RadialMap:
         if terms not in (1, 2, 3):
             raise ValueError(f"terms {terms!r}: 1, 2 or 3")
         for k in range(1, terms + 1):  # grow the radial series: stabler than all at once
-
-            def cost(q: FloatArray, k: int = k) -> FloatArray:
-                return resid(q, k)
-
-            p = levenberg_marquardt(cost, p)
+            p = levenberg_marquardt(partial(resid, k=k), p)
             p[2 + k : 5] = 0.0
         if edge_scatter and edge_sets:  # a side scattering more than the dots weighs less
             r = resid(p, terms) * sx
@@ -379,11 +376,7 @@ class RadialMap:
                 side_power = float(np.mean((r[at : at + len(e)] / weights[i]) ** 2))
                 at += len(e)
                 weights[i] = math.sqrt(min(edge_weight, dot_power / max(side_power, 1e-300)))
-
-            def refit(q: FloatArray) -> FloatArray:
-                return resid(q, terms)
-
-            p = levenberg_marquardt(refit, p)
+            p = levenberg_marquardt(partial(resid, k=terms), p)
         p = p[:13]
         model = cls(p, scale, np.zeros((rows, cols, 2)), lattice)
         if correct:
