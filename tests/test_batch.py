@@ -163,11 +163,7 @@ class Cluster:
             _dask("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
                   "--scheduler-file", str(self.file))
         ]  # fmt: skip
-        deadline = time.monotonic() + 60
-        while not self.file.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        assert self.file.exists(), "dask scheduler did not start"
-        self.address = json.loads(self.file.read_text())["address"]
+        self.address = self._scheduler_address(deadline=time.monotonic() + 60)
         self.workers = [
             _dask("worker", "--scheduler-file", str(self.file), "--nthreads", "1", "--no-nanny",
                   "--no-dashboard", "--host", "127.0.0.1")
@@ -180,6 +176,15 @@ class Cluster:
             client.wait_for_workers(workers, timeout=60)
             pids = client.run(os.getpid)
         self.address_of = {pid: addr for addr, pid in pids.items()}  # worker pid -> address
+
+    def _scheduler_address(self, deadline: float) -> str:
+        """The address in the scheduler file, once dask has finished writing it (not atomic)."""
+        while time.monotonic() < deadline:
+            try:
+                return str(json.loads(self.file.read_text())["address"])
+            except (FileNotFoundError, json.JSONDecodeError, KeyError):
+                time.sleep(0.1)
+        raise AssertionError(f"dask scheduler did not write {self.file} within 60 s")
 
     def close(self) -> None:
         for p in reversed(self.procs):
