@@ -116,6 +116,31 @@ def test_cli_lists_tasks_and_rejects_bad_options(capsys: pytest.CaptureFixture[s
     assert "--write needs --scene-seed" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["laser", "--opt", "frames=0"], "option frames='0' must be 10..100000"),
+        (["laser", "--opt", "beam_channels=7"], "need beam_channels 1 or 3, got 7"),
+        (["laser", "--opt", "halo=-5"], "need halo >= 0"),
+        (["laser", "--opt", "position=zz"], "position 'beam', 'centroid' or 'fit', got 0.2, 'zz'"),
+        (["laser", "--opt", "hold_spot=3"], "option hold_spot=3 must be 0 or 1"),
+        (["laser", "--opt", "method=zz"], "option method='zz'; choose from colour, white-core"),
+        (["laser", "--opt", "cache=/proc/omnidev-none"], "cache /proc/omnidev-none: No such"),
+        (["mouse", "--opt", "frames=0"], "option frames='0' must be 2..100000"),
+        (["screen", "--scene-seed", "5", "--write", "/proc/omnidev-none"], "--write /proc/omnidev"),
+    ],
+)
+def test_cli_refuses_options_no_scene_could_run(
+    args: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Options every scene would refuse are one-line errors before any scene runs (they
+    were one error per scene, exit 1, and ``--write`` said it wrote what it could not)."""
+    assert main(["eval", *args, "--scenes", "1", "--no-progress"]) == 2
+    captured = capsys.readouterr()
+    assert message in captured.err and len(captured.err.strip().splitlines()) == 1
+    assert "wrote" not in captured.out
+
+
 def test_cli_json_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "r.json"
     rc = main(["eval", "screen", "--scenes", "1", "--seed", "1003", "--json", "-o", str(out)])

@@ -95,6 +95,11 @@ def run(args: argparse.Namespace) -> int:
                 raise OmnidevError(f"--write {w}: exists and is not a folder")
             if any(w.iterdir()) and not args.force:
                 raise OmnidevError(f"{args.write} exists and is not empty; pass --force")
+        if w is not None:
+            try:
+                w.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise OmnidevError(f"--write {w}: {exc.strerror or exc}") from None
         if not 0 <= args.scene_seed <= MAX_SEED:
             raise OmnidevError(f"--scene-seed {args.scene_seed}: give 0 .. {MAX_SEED}")
         res = run_one(task, args.scene_seed, options, args.write)
@@ -109,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"  {key} = {value:.4g}")
             for key, flag in sorted(res.flags.items()):
                 print(f"  {key}: {flag}")
-            if args.write is not None:
+            if args.write is not None and res.status != "error":
                 print(f"wrote {args.write}/")
         return 0 if res.status != "error" else 1
     if args.write is not None:

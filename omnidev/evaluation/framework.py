@@ -74,6 +74,8 @@ class Task:
     """The values a text option may take (checked by :func:`typed_options`)."""
     ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     """The closed range of a number option (checked by :func:`typed_options`)."""
+    check: Callable[[Mapping[str, Any]], None] | None = None
+    """Checks the typed options together; raises OmnidevError naming the option."""
 
 
 def _num(v: float) -> float | None:
@@ -134,6 +136,8 @@ def typed_options(task: Task, given: Mapping[str, str]) -> dict[str, Any]:
                 raise OmnidevError(
                     f"task {task.name}: option {key}={text!r} must be {lo:g}..{hi:g}"
                 )
+    if task.check is not None:
+        task.check(out)
     return out
 
 

@@ -314,6 +314,13 @@ class ColourSpotDetector:
             raise ValueError(f"need 1 <= min_area <= max_area, got {min_area}, {max_area}")
         if max_elongation < 1.0 or not 0.0 <= min_fill <= 1.0 or not 0.0 <= min_new <= 1.0:
             raise ValueError("need max_elongation >= 1, 0 <= min_fill <= 1, 0 <= min_new <= 1")
+        if halo < 0 or colour_ratio < 0 or busy_gain < 0 or not 0 <= fringe <= 1:
+            raise ValueError(
+                "need halo >= 0, colour_ratio >= 0, busy_gain >= 0 and 0 <= fringe <= 1, got"
+                f" {halo}, {colour_ratio}, {busy_gain}, {fringe}"
+            )
+        if not 0 <= min_cross < 255:
+            raise ValueError(f"need 0 <= min_cross < 255, got {min_cross}")
         if not 0 < change_fraction <= 1 or bands < 1 or busy_frames < 0 or track_px <= 0:
             raise ValueError(
                 "need 0 < change_fraction <= 1, bands >= 1, busy_frames >= 0, track_px > 0"

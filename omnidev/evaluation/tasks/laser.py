@@ -55,7 +55,7 @@ from omnidev.evaluation.framework import SceneResult, Task
 from omnidev.filters import OneEuroFilter
 from omnidev.laser.colour_spot import ColourSpotDetector
 from omnidev.laser.spot import SpotDetector
-from omnidev.sim.laser_scenes import LaserScene, LaserTruth, ref_scale, screen_mask
+from omnidev.sim.laser_scenes import LEAD_IN, LaserScene, LaserTruth, ref_scale, screen_mask
 
 RATE_BOUND, CLASS_BOUND, FALSE_BOUND = 0.99, 0.97, 0.001  # issue 12
 CLASS_AXES = ("look", "colour", "compression", "slide", "resolution")
@@ -89,6 +89,24 @@ def make_detector(
     if method == "white-core":
         return SpotDetector(colour, mask)
     raise OmnidevError(f"task laser: method must be colour or white-core, got {method!r}")
+
+
+def check_options(options: Mapping[str, Any]) -> None:
+    """Refuses, before any scene runs, a method or detector option the detector would
+    refuse in every scene, and a cache folder that cannot be made."""
+    method = str(options.get("method", "colour"))
+    try:
+        make_detector(method, "red", np.ones((8, 8), bool), options)
+    except ValueError as exc:
+        raise OmnidevError(f"task laser: detector options: {exc}") from None
+    if options.get("hold_spot", -1) not in (-1, 0, 1):
+        raise OmnidevError(f"task laser: option hold_spot={options['hold_spot']} must be 0 or 1")
+    cache = str(options.get("cache", ""))
+    if cache:
+        try:
+            Path(cache).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OmnidevError(f"task laser: cache {cache}: {exc.strerror or exc}") from None
 
 
 def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> SceneResult:
@@ -334,6 +352,9 @@ TASK = Task(
         "position": "",
         "cache": "",
     },
+    choices={"method": ("colour", "white-core")},
+    ranges={"frames": (LEAD_IN + 2, 100_000)},
+    check=check_options,
     headline=(
         "miss_rate",
         "false_rate",

@@ -280,6 +280,7 @@ TASK = Task(
     run_scene=run_scene,
     summarize=summarize,
     options={"frames": 150, "configs": "default"},
+    ranges={"frames": (2, 100_000)},
     headline=(
         "all4.rms",
         "all4.max",
