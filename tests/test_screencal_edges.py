@@ -261,3 +261,32 @@ def test_invert_is_nan_without_a_warning_where_the_map_folds() -> None:
         out = invert(fold, np.array([[2.0, 1.0], [3.0, 2.0]]), np.array([[1.5, 0.0], [-5.0, 0.0]]))
     np.testing.assert_allclose(out[0], [2.0, 1.0], atol=1e-6)
     assert not np.isfinite(out[1]).all()
+
+
+def test_corner_of_a_wildly_curved_side_is_found_without_overflow() -> None:
+    """Held-out scene 59013 (an occluder over the bottom of a 424x240 picture): the
+    bottom side's fit bends so far that the alternating projections onto it and the
+    right side swung away to infinity (overflow, a NaN polygon). Corner 2 is now where
+    the two fits pass closest."""
+    from omnidev.screencal.features import _corners_and_mids, _side_point
+
+    quad = np.array([[163.86, 91.65], [291.4, 72.85], [284.14, 130.06], [167.46, 165.8]])
+    coefs = [
+        np.array([1.63479e-01, -1.63200e-03, 1.50000e-05]),
+        np.array([-5.3315e-02, 8.6730e-03, -7.0000e-05]),
+        np.array([1.54317179e02, -3.08156600e00, 1.56390000e-02]),
+        np.array([-3.26343e-01, 1.48100e-03, 6.10000e-05]),
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        corners, mids = _corners_and_mids(quad, coefs)
+    assert np.isfinite(corners).all() and np.isfinite(mids).all()
+    for i in (0, 1):  # away from the bottom side
+        assert np.hypot(*(corners[i] - quad[i])) < 2.0, (i, corners[i])
+    # corner 2 halfway between the fits where they pass closest (they do not meet here)
+    t = np.linspace(0.75, 1.25, 2001)
+    right = np.array([_side_point(coefs[1], quad[1], quad[2], x) for x in t])
+    bottom = np.array([_side_point(coefs[2], quad[2], quad[3], x - 1.0) for x in t])
+    gap = np.hypot(*(right[:, None] - bottom[None, :]).transpose(2, 0, 1)).min()
+    to_right, to_bottom = (np.hypot(*(c - corners[2]).T).min() for c in (right, bottom))
+    assert abs(to_right - gap / 2) < 0.5 and abs(to_bottom - gap / 2) < 0.5, (gap, to_right)

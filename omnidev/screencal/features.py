@@ -456,12 +456,14 @@ def _corners_and_mids(
     quad: FloatArray, coefs: Sequence[FloatArray]
 ) -> tuple[list[FloatArray], list[FloatArray]]:
     """Corner i where the fitted sides i-1 and i meet (alternate projections onto the
-    two curves, from the rough corner ``quad[i]``) and each side's point at its middle;
-    side i's fit (:func:`_side_fit`) is in the frame of quad[i] -> quad[i+1]."""
+    two curves, from the rough corner ``quad[i]``; where they wander further than a
+    quarter of the shorter side from it, :func:`_closest_approach`) and each side's point
+    at its middle; side i's fit (:func:`_side_fit`) is in the frame of quad[i] -> quad[i+1]."""
     corners = []
     for i in range(4):  # corner i: sides i-1 (ending at it) and i (starting at it)
         j = (i - 1) % 4
         p = quad[i].copy()
+        reach = 0.25 * _shorter(quad, j, i)  # image px from the rough corner
         for _ in range(20):
             p_old = p
             for k in (j, i):
@@ -470,11 +472,31 @@ def _corners_and_mids(
                 length = float(np.hypot(*e))
                 t = float((p - a) @ (e / length)) / length
                 p = _side_point(coefs[k], a, b, t)
-            if np.hypot(*(p - p_old)) < 1e-4:
+            if np.hypot(*(p - quad[i])) > reach or np.hypot(*(p - p_old)) < 1e-4:
                 break
+        if np.hypot(*(p - quad[i])) > reach:
+            p = _closest_approach(quad, coefs, j, i)
         corners.append(p)
     mids = [_side_point(coefs[i], quad[i], quad[(i + 1) % 4], 0.5) for i in range(4)]
     return corners, mids
+
+
+def _shorter(quad: FloatArray, j: int, i: int) -> float:
+    """The shorter of the rough sides j and i (image px)."""
+    return min(float(np.hypot(*(quad[(k + 1) % 4] - quad[k]))) for k in (j, i))
+
+
+def _closest_approach(quad: FloatArray, coefs: Sequence[FloatArray], j: int, i: int) -> FloatArray:
+    """Corner i where the alternating projections of :func:`_corners_and_mids` do not
+    settle near the rough corner (a strongly curved fit swings them away, then to
+    infinity): the midpoint of the closest pair of points of side j's end (t in
+    0.75..1.25) and side i's start (t in -0.25..0.25), sampled every 1/2000 of a side."""
+    t = np.linspace(-0.25, 0.25, 1001)
+    a = np.array([_side_point(coefs[j], quad[j], quad[i], 1.0 + x) for x in t])
+    b = np.array([_side_point(coefs[i], quad[i], quad[(i + 1) % 4], x) for x in t])
+    d = np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
+    k, m = np.unravel_index(int(np.argmin(d)), d.shape)
+    return np.asarray(0.5 * (a[k] + b[m]), np.float64)
 
 
 def border_from_region(region: ScreenRegion) -> BorderPolygon:
