@@ -36,3 +36,11 @@ def heldout_errors(sc: ScreenScene, feat: ScreenFeatures, method: str = "radial"
     xy = xy[sc.visible(xy)]
     est = fit_calibration(feat, method).image_to_screen(sc.screen_to_image(xy))
     return np.asarray(np.hypot(*_to_ref(est - xy, sc.screen_px).T), np.float64)
+
+
+def assert_within_bound(e: np.ndarray) -> None:
+    """Issue 12's bound on a calibration's held-out errors (px of a 1920x1080 screen):
+    every point mapped, RMS <= 0.5 and max <= 1.5."""
+    assert np.isfinite(e).all(), f"{int(np.count_nonzero(~np.isfinite(e)))} points not mapped"
+    rms, worst = float(np.sqrt(np.mean(e**2))), float(e.max())
+    assert rms <= 0.5 and worst <= 1.5, f"RMS {rms:.3f}, max {worst:.3f} px (bound 0.5 / 1.5)"
