@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from omnidev.cli.main import main
@@ -126,6 +127,7 @@ def test_cli_lists_tasks_and_rejects_bad_options(capsys: pytest.CaptureFixture[s
         (["laser", "--opt", "hold_spot=3"], "option hold_spot=3 must be 0 or 1"),
         (["laser", "--opt", "method=zz"], "option method='zz'; choose from colour, white-core"),
         (["laser", "--opt", "cache=/proc/omnidev-none"], "cache /proc/omnidev-none: No such"),
+        (["laser", "--opt", "frames=100000"], "task laser: frames=100000 (a 1920x1080 scene"),
         (["mouse", "--opt", "frames=0"], "option frames='0' must be 2..100000"),
         (["screen", "--scene-seed", "5", "--write", "/proc/omnidev-none"], "--write /proc/omnidev"),
     ],
@@ -249,3 +251,25 @@ def _zombie_or_gone(pid: int) -> bool:
         return Path(f"/proc/{pid}/stat").read_text().split(") ")[1].startswith("Z")
     except (OSError, IndexError):
         return True
+
+
+def test_laser_cache_is_npy_and_json_read_back_and_a_bad_file_is_rendered_again(
+    tmp_path: Path,
+) -> None:
+    """The laser task's frame cache holds no pickle; the counts from the cache equal the
+    counts from rendering; a damaged cache file is rendered again, not an error."""
+    task = load_task("laser")
+    opts = {"frames": 12, "compare": False, "cache": str(tmp_path)}
+    first = run_one(task, 1006, opts, None)  # 320x240: the smallest camera
+    assert first.status == "ok", first.message
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == ["laser-1006-12.json", "laser-1006-12.npy"]
+    frames = np.load(tmp_path / "laser-1006-12.npy", allow_pickle=False)
+    assert frames.shape == (12, 240, 320, 3) and frames.dtype == np.uint8
+    again = run_one(task, 1006, opts, None)
+    assert again.counts == first.counts
+    assert json.dumps(again.metrics, sort_keys=True) == json.dumps(first.metrics, sort_keys=True)
+    (tmp_path / "laser-1006-12.npy").write_bytes(b"\x93NUMPY truncated")
+    redone = run_one(task, 1006, opts, None)
+    assert redone.status == "ok" and redone.counts == first.counts
+    assert np.array_equal(np.load(tmp_path / "laser-1006-12.npy"), frames)

@@ -34,9 +34,9 @@ keyword options as ``--opt KEY=VALUE`` for the ``colour`` method's tuning
 ``max_darker``, ``min_cross``, ``busy_events``, ``position``, ``new_margin``,
 ``confirm``, ``busy_confirm``, ``min_rise``, ``fringe_ratio``, ``hold_spot`` (0 or 1),
 ``peak_margin``, ``beam_channels``), and
-``cache`` (a directory: rendered frames are kept there and reused, so methods
-compared on the same scenes are rendered once; the frames depend only on the seed
-and ``frames``).
+``cache`` (a directory: rendered frames are kept there, as ``.npy`` and ``.json``
+files, and reused, so methods compared on the same scenes are rendered once; the
+frames depend only on the seed and ``frames``).
 """
 
 from __future__ import annotations
@@ -50,14 +50,19 @@ from typing import Any
 
 import numpy as np
 
+from omnidev.budget import check_memory
 from omnidev.errors import OmnidevError
 from omnidev.evaluation.framework import SceneResult, Task
 from omnidev.filters import OneEuroFilter
 from omnidev.laser.colour_spot import ColourSpotDetector
 from omnidev.laser.spot import SpotDetector
 from omnidev.sim.laser_scenes import LEAD_IN, LaserScene, LaserTruth, ref_scale, screen_mask
+from omnidev.sim.screen_scenes import RESOLUTIONS
 
 RATE_BOUND, CLASS_BOUND, FALSE_BOUND = 0.99, 0.97, 0.001  # issue 12
+# the memory one scene takes while rendered: a base and every frame this many times over
+# (uint8 frames and their encoded copies; 1920x1080, 30 and 90 frames: 0.9 and 1.6 GiB)
+RENDER_BASE_BYTES, FRAME_COPIES = 600 << 20, 2
 CLASS_AXES = ("look", "colour", "compression", "slide", "resolution")
 FILTERS: dict[str, tuple[float, float, float, float | None]] = {
     # name: (min_cutoff Hz, beta, d_cutoff Hz, max_gap_s)
@@ -101,6 +106,13 @@ def check_options(options: Mapping[str, Any]) -> None:
         raise OmnidevError(f"task laser: detector options: {exc}") from None
     if options.get("hold_spot", -1) not in (-1, 0, 1):
         raise OmnidevError(f"task laser: option hold_spot={options['hold_spot']} must be 0 or 1")
+    frames = int(options.get("frames", 75))
+    w, h = max(RESOLUTIONS, key=lambda s: s[0] * s[1])
+    check_memory(
+        RENDER_BASE_BYTES + frames * w * h * 3 * FRAME_COPIES,
+        f"task laser: frames={frames} (a {w}x{h} scene holds its frames {FRAME_COPIES} times "
+        "while it is rendered and encoded)",
+    )
     cache = str(options.get("cache", ""))
     if cache:
         try:
@@ -127,7 +139,8 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     ferr: dict[str, list[float]] = {n: [] for n in FILTERS}
     log: list[dict[str, Any]] = []
     sw, sh = scene.screen_px
-    for img, truth in _frames(sc, str(options.get("cache", ""))):
+    frames = _frames(sc, str(options.get("cache", "")))
+    for img, truth in frames:
         before = getattr(det, "refused", 0)
         s = det.detect(img)
         counts["refused"] += getattr(det, "refused", 0) - before
@@ -190,33 +203,46 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         if fe:
             res.metrics[f"filter.{name}.rms"] = float(np.sqrt(np.mean(np.square(fe))))
     if outdir is not None:
-        _write(outdir, sc, log)
+        _write(outdir, sc, log, [img for img, _ in frames])
     return res
 
 
 def _frames(sc: LaserScene, cache: str) -> list[tuple[np.ndarray, LaserTruth]]:
     """The scene's frames and truth, rendered, or read from (and written to) the cache
-    directory ``cache`` (one file per seed and frame count; "" for none): methods
-    compared on the same scenes need rendering them only once."""
+    directory ``cache`` ("" for none): methods compared on the same scenes need
+    rendering them only once. Per seed and frame count, ``laser-SEED-FRAMES.npy``
+    (the frames, N x H x W x 3 uint8, read memory-mapped) and ``.json`` (the truth);
+    no pickles, so a cache from elsewhere runs no code. A cache file that cannot be
+    read or does not match is rendered again and replaced."""
     if not cache:
         return list(sc.frames())
-    import pickle
-
     from omnidev.atomic import atomic_path
 
-    path = Path(cache) / f"laser-{sc.seed}-{sc.laser.frames}.pkl"
-    if path.is_file():
-        with path.open("rb") as f:
-            imgs, truths = pickle.load(f)
-        return [(i, LaserTruth(**t)) for i, t in zip(imgs, truths, strict=True)]
+    stem = Path(cache) / f"laser-{sc.seed}-{sc.laser.frames}"
+    npy, js = stem.with_suffix(".npy"), stem.with_suffix(".json")
+    try:
+        truths = [LaserTruth(**t) for t in json.loads(js.read_text())["truth"]]
+        imgs = np.load(npy, mmap_mode="r", allow_pickle=False)
+        if imgs.dtype == np.uint8 and imgs.ndim == 4 and len(imgs) == len(truths):
+            return [(np.array(imgs[i]), t) for i, t in enumerate(truths)]
+    except (OSError, ValueError, KeyError, TypeError):
+        pass  # absent or unreadable: render it
     out = list(sc.frames())
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path, force=True) as tmp, tmp.open("wb") as f:
-        pickle.dump(([i for i, _ in out], [t.to_dict() for _, t in out]), f, protocol=5)
+    shape = (len(out), *out[0][0].shape)
+    with atomic_path(npy, force=True) as tmp:
+        mm = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.uint8, shape=shape)
+        for i, (img, _) in enumerate(out):
+            mm[i] = img
+        mm.flush()
+        del mm
+    with atomic_path(js, force=True) as tmp:
+        tmp.write_text(json.dumps({"truth": [t.to_dict() for _, t in out]}) + "\n")
     return out
 
 
-def _write(outdir: Path, sc: LaserScene, log: list[dict[str, Any]]) -> None:
+def _write(
+    outdir: Path, sc: LaserScene, log: list[dict[str, Any]], frames: list[np.ndarray]
+) -> None:
     from omnidev.atomic import atomic_path
 
     outdir.mkdir(parents=True, exist_ok=True)
@@ -235,7 +261,6 @@ def _write(outdir: Path, sc: LaserScene, log: list[dict[str, Any]]) -> None:
     import cv2
 
     with atomic_path(outdir / "frames.avi", force=True) as tmp:
-        frames = [img for img, _ in sc.frames()]
         h, w = frames[0].shape[:2]
         vw = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"FFV1"), sc.laser.fps, (w, h))
         for img in frames:
