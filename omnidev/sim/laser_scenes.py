@@ -34,11 +34,14 @@ position in screen and image pixels (the mean of its path over the exposure of
 the row it lies on: the centroid of its light), whether it is visible at all
 (it raises the camera's laser channel by >= 25 grey levels within its clipped
 radius of its centre, judged on the radiance with and without it: a spot on
-content that already clips that channel is not), and the tolerance of the issue
-12 acceptance in screen px of a 1920x1080 screen: 1.5, or the screen length of
-0.5 camera px where that is larger. Errors are measured in the same units (x
-scaled by 1920 / W, y by 1080 / H of the scene's screen), as ``omnidev eval
-screen`` does.
+content that already clips that channel is not), whether it is still visible in
+the frame as delivered (``delivered``: the same test on the encoded frame against
+the frame rendered and encoded without the laser; a small spot that the codec's
+chroma subsampling and quantization wash out is visible but not delivered), and
+the tolerance of the issue 12 acceptance in screen px of a 1920x1080 screen: 1.5,
+or the screen length of 0.5 camera px where that is larger. Errors are measured in
+the same units (x scaled by 1920 / W, y by 1080 / H of the scene's screen), as
+``omnidev eval screen`` does.
 
 Frames: image pixels (u, v) and screen pixels (x, y) with the centre of the
 top-left pixel at (0, 0) (docs/conventions.md).
@@ -291,6 +294,9 @@ class LaserTruth:
     tol_px: float  # screen px
     speed_px_s: float  # screen px per second at mid-exposure
     slide_change: bool  # the content changed to a new slide on this frame
+    # visible in the frame as delivered (after the codec), judged like ``visible`` on the
+    # frame against the same frame rendered and encoded without the laser
+    delivered: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -395,11 +401,19 @@ class LaserScene:
 
     def frames(self) -> Iterator[tuple[NDArray[np.uint8], LaserTruth]]:
         """The camera's frames as the detector gets them (auto-exposure, the scene's
-        codec), each with its truth."""
+        codec), each with its truth.
+
+        ``delivered`` is judged on a twin stream: every frame also sensed without the
+        laser (same exposure, same noise) and encoded on its own; a spot the codec
+        smoothed or quantized away raises the laser channel by less than
+        :data:`VISIBLE_RISE` there."""
         sc, p = self.scene, self.laser
         r = renderer_for(sc)
         SW, SH = sc.screen_px
         truths: list[LaserTruth] = []
+        twins: list[NDArray[np.uint8]] = []  # the frames sensed without the laser
+        bare: list[NDArray[np.float32] | None] = [None]  # this frame's radiance without it
+        rad = max(1.5, 0.5 * p.spot_px)  # visibility is judged within this of the centre
         c = _LASER_CH[p.colour]
         gain = r.base_exposure * sc.colour_gain[c]
         lut = 255.0 * np.linspace(0.0, 1.0, 4096) ** (1.0 / sc.camera_gamma)
@@ -422,16 +436,17 @@ class LaserScene:
                 truth = self.truth(i, which != last and i > 0)
                 last = which
                 L = r.radiance(slide.frame(t), t)
+                bare[0] = None
                 if truth.on:
                     box = self._bbox(t)
                     r0, r1, c0, c1 = r._window(box)
+                    bare[0] = L.copy()
                     before = to8(L[r0:r1, c0:c1, c].copy())
                     r._add_extra(L, t, None, self._light, box, MOTION_SAMPLES)
                     rise = to8(L[r0:r1, c0:c1, c]) - before
                     visible = False
                     if truth.visible and truth.uv is not None and rise.size:
                         # judged within the still spot's clipped radius of its centre
-                        rad = max(1.5, 0.5 * p.spot_px)
                         yy, xx = np.mgrid[r0:r1, c0:c1]
                         near = (xx - truth.uv[0]) ** 2 + (yy - truth.uv[1]) ** 2 <= rad * rad
                         visible = bool(near.any() and float(rise[near].max()) >= VISIBLE_RISE)
@@ -440,10 +455,42 @@ class LaserScene:
                 truths.append(truth)
                 yield L, t
 
-        images, _, _ = _expose(sc, r, radiances(), 0)
+        def sense_twin(seed: int, exposure: float, image: NDArray[np.uint8]) -> None:
+            twins.append(image if bare[0] is None else r.sensor(bare[0], exposure, seed))
+
+        images, _, _ = _expose(sc, r, radiances(), 0, sense_twin)
         out = compress_frames(images, sc.compression, fps=p.fps)
         del images
+        without = compress_frames(twins, sc.compression, fps=p.fps)
+        twins.clear()
+        for i, truth in enumerate(truths):
+            if truth.visible and truth.uv is not None:
+                rise = _rise_near(out[i], without[i], c, truth.uv, rad)
+                truths[i] = _replace_truth(truth, delivered=rise >= VISIBLE_RISE)
+        del without
         yield from zip(out, truths, strict=True)
+
+
+def _rise_near(
+    img: NDArray[np.uint8],
+    bare: NDArray[np.uint8],
+    c: int,
+    uv: tuple[float, float],
+    rad: float,
+) -> float:
+    """The largest rise of channel ``c`` of ``img`` over ``bare`` within ``rad`` px of
+    ``uv`` (image px), in grey levels (0 where no pixel is that near)."""
+    h, w = img.shape[:2]
+    u0, u1 = max(0, math.floor(uv[0] - rad)), min(w, math.ceil(uv[0] + rad) + 1)
+    v0, v1 = max(0, math.floor(uv[1] - rad)), min(h, math.ceil(uv[1] + rad) + 1)
+    if u0 >= u1 or v0 >= v1:
+        return 0.0
+    yy, xx = np.mgrid[v0:v1, u0:u1]
+    near = (xx - uv[0]) ** 2 + (yy - uv[1]) ** 2 <= rad * rad
+    if not near.any():
+        return 0.0
+    d = img[v0:v1, u0:u1, c].astype(np.int16) - bare[v0:v1, u0:u1, c]
+    return float(d[near].max())
 
 
 def _replace_truth(t: LaserTruth, **kw: Any) -> LaserTruth:

@@ -1502,10 +1502,14 @@ def _expose(
     r: SceneRenderer,
     radiances: Iterable[tuple[F32, float]],
     frame_seed: int,
+    on_frame: Callable[[int, float, U8], None] | None = None,
 ) -> tuple[list[U8], list[float], list[float]]:
     """Auto-exposure over a stream of (radiance, t): meter each frame, correct a
     fraction ``ae_lag`` of the log error towards ``ae_strength log(reference / metered)``
-    (the reference: the first frame), clamp to 1/8 .. 8, add the drift, sense."""
+    (the reference: the first frame), clamp to 1/8 .. 8, add the drift, sense.
+    ``on_frame(frame_seed, exposure, image)``: called after each frame is sensed, with
+    the sensor's seed and the exposure it used (drift included): a twin radiance
+    sensed with both gets the same exposure and the same noise."""
     images: list[U8] = []
     times: list[float] = []
     exps: list[float] = []
@@ -1520,7 +1524,10 @@ def _expose(
             target = float(np.clip(target, math.log(1 / 8), math.log(8)))
             log_e += scene.ae_lag * (target - log_e)
         e = math.exp(log_e)
-        images.append(r.sensor(L, e * r.exposure_drift(t), frame_seed + i))
+        exposure = e * r.exposure_drift(t)
+        images.append(r.sensor(L, exposure, frame_seed + i))
+        if on_frame is not None:
+            on_frame(frame_seed + i, exposure, images[-1])
         times.append(t)
         exps.append(e)
     return images, times, exps
