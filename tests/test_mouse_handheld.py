@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from omnidev.evaluation.framework import evaluate, load_task
-from omnidev.mouse.detect import detect_landmarks, rigid_plane_error
+from omnidev.mouse.detect import DetectParams, detect_landmarks, rigid_plane_error
 from omnidev.mouse.evaluate import cursor_error_px
 from omnidev.mouse.geometry import (
     cursor_homography,
@@ -156,3 +156,22 @@ def test_slide_content_on_a_small_screen_texture():
         c = screen_content(np.random.default_rng(seed), 300, 150, kind="slide")
         assert c.base.shape == (150, 300, 3)
         assert float(c.base.std()) > 0.02  # content (linear 0-1), not a blank
+
+
+def test_border_step_sampled_farther_out_finds_landmarks_the_nearest_samples_missed() -> None:
+    """Tuning video 103 (640x480): with the colour step sampled only at the nearest
+    offset (``border_step_scales=(1.0,)``, the code before) no side of the true landmark
+    group stepped and no frame was detected; with 1.5 x and 2 x too every frame is,
+    each landmark within 0.3 px of the truth."""
+    video = draw_video(103, frames=100)
+    r = HandheldRenderer(video)
+    nearest_only = dataclasses.replace(DetectParams(), border_step_scales=(1.0,))
+    frames = [i for i in range(0, 100, 5) if all(r.truth(i)["visible"])]
+    assert len(frames) >= 15
+    for i in frames:
+        img = r.render(i)
+        assert detect_landmarks(img, video.layout, nearest_only) is None
+        found = detect_landmarks(img, video.layout)
+        assert found is not None, f"frame {i}"
+        true_uv = np.array(r.truth(i)["landmarks_uv"])
+        assert float(np.hypot(*(found.centers - true_uv).T).max()) < 0.3

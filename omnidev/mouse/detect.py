@@ -102,6 +102,14 @@ class DetectParams:
             largest mean difference between both sides, the mean reaches this many grey
             levels and 3/4 of the points agree in sign (edges of sensor noise or of a
             textured wall do not; 0 turns it off).
+        border_step_scales: the step is sampled at max(2, ``border_band_frac`` x the
+            landmark-to-border distance) px to both sides of the predicted border, times
+            each of these in turn, and the side votes when one of them steps: a bezel of
+            a few pixels, blur and a border predicted a pixel off put the samples at 1 x
+            on the content (e.g. 320x240 with 6 px discs: no side stepped at 1 x, three
+            at 1.5-2 x). Issue 13, tuning videos 100-139: frames with a cursor 0.876 ->
+            0.938 with (1, 1.5, 2); held out 30000-30059: 0.834 -> 0.873, no other
+            figure worse, no cursor on the no-monitor and look-alike videos.
         threshold_mode: "adaptive" (darker than the local mean by ``adaptive_c`` grey
             levels over windows of ``block_fracs`` x the image's smaller side), the
             dissertation's "fixed" (``threshold``), or "both" (adaptive, then fixed
@@ -140,6 +148,7 @@ class DetectParams:
     threshold_mode: str = "both"
     border_search: str = "predicted"
     min_border_step: float = 12.0
+    border_step_scales: tuple[float, ...] = (1.0, 1.5, 2.0)
     border_band_frac: float = 0.3
     block_fracs: tuple[float, ...] = (0.06, 0.2)
     adaptive_c: float = 12.0
@@ -591,12 +600,10 @@ def detect_landmarks(
                 # a band around the screen border where the group puts it (the bezel's
                 # outer edge, between an overhanging card and the screen, stays out)
                 a, b = screen[i], screen[(i + 1) % 4]
-                if params.min_border_step > 0 and not _border_step(
-                    image,
-                    a,
-                    b,
-                    max(2.0, params.border_band_frac * inset_mm[i] * px_per_mm),
-                    params,
+                step_px = max(2.0, params.border_band_frac * inset_mm[i] * px_per_mm)
+                if params.min_border_step > 0 and not any(
+                    _border_step(image, a, b, k * step_px, params)
+                    for k in params.border_step_scales
                 ):
                     weak += 1  # no change of colour across the border: no vote
                     if weak > 4 - params.min_border_sides:
