@@ -92,6 +92,17 @@ def test_needs_its_layout(tmp_path):
         open_tracker("camera-mouse", {}, bad)
 
 
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [("x", "max_rigid_error must be a number, got 'x'"), ("-1", "must be 0 \\(off\\) .. 10")],
+)
+def test_max_rigid_error_is_checked(layout_file, value, message):
+    from omnidev.errors import TrackerError
+
+    with pytest.raises(TrackerError, match=message):
+        open_tracker("camera-mouse", {"max_rigid_error": value}, layout_file)
+
+
 def test_redetects_when_confidence_falls(layout_file):
     """A landmark whose prediction went wrong (pushed 60 px off, marked missing) is not
     found near there; while it is predicted the detection stage runs every
