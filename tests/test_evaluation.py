@@ -127,7 +127,10 @@ def test_cli_lists_tasks_and_rejects_bad_options(capsys: pytest.CaptureFixture[s
         (["laser", "--opt", "hold_spot=3"], "option hold_spot=3 must be 0 or 1"),
         (["laser", "--opt", "method=zz"], "option method='zz'; choose from colour, white-core"),
         (["laser", "--opt", "cache=/proc/omnidev-none"], "cache /proc/omnidev-none: No such"),
-        (["laser", "--opt", "frames=100000"], "task laser: frames=100000 (a 1920x1080 scene"),
+        (  # refused under any limit (2 TiB); an explicit one, as OMNIDEV_MAX_MEMORY=0 lifts it
+            ["laser", "--opt", "frames=100000", "--max-memory", "64G"],
+            "task laser: frames=100000 (a 1920x1080 scene",
+        ),
         (["mouse", "--opt", "frames=0"], "option frames='0' must be 2..100000"),
         (["screen", "--scene-seed", "5", "--write", "/proc/omnidev-none"], "--write /proc/omnidev"),
     ],
