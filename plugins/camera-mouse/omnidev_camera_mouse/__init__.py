@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -297,6 +297,19 @@ def load_layout(path: Path) -> LandmarkLayout:
         raise TrackerError(f"camera-mouse: {path}: {exc}") from None
 
 
+_Num = TypeVar("_Num", int, float)
+
+
+def _number(
+    options: Mapping[str, Any], key: str, default: _Num, cast: type[_Num], what: str
+) -> _Num:
+    """Option ``key`` as ``cast`` (``default`` when absent); a one-line error naming it."""
+    try:
+        return cast(options.get(key, default))
+    except (TypeError, ValueError):
+        raise TrackerError(f"camera-mouse: {key} must be {what}, got {options[key]!r}") from None
+
+
 def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> CameraMouse:
     """Entry point: the calibration is the landmark layout file; option ``method``."""
     known = {
@@ -309,35 +322,12 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> Camera
             f"camera-mouse: unknown option {sorted(unknown)[0]!r} "
             f"(options: {', '.join(sorted(known))})"
         )
-    try:
-        readout = float(options.get("readout_ms", 0.0))
-    except (TypeError, ValueError):
-        raise TrackerError(
-            f"camera-mouse: readout_ms must be a number of ms, got {options['readout_ms']!r}"
-        ) from None
+    readout = _number(options, "readout_ms", 0.0, float, "a number of ms")
     screen_px = _screen_px(options.get("screen_px", "1920x1080"))
     lens = None if options.get("camera") in (None, "") else load_lens(Path(str(options["camera"])))
-    try:
-        fov = float(options.get("fov_deg", 60.0))
-    except (TypeError, ValueError):
-        raise TrackerError(
-            f"camera-mouse: fov_deg must be a number of degrees, got {options['fov_deg']!r}"
-        ) from None
-    try:
-        redetect = int(options.get("redetect_every", 5))
-    except (TypeError, ValueError):
-        raise TrackerError(
-            f"camera-mouse: redetect_every must be a whole number of frames, "
-            f"got {options['redetect_every']!r}"
-        ) from None
-    try:
-        rigid = float(options.get("max_rigid_error", 0.15))
-    except (TypeError, ValueError):
-        raise TrackerError(
-            f"camera-mouse: max_rigid_error must be a number, got {options['max_rigid_error']!r}"
-        ) from None
-    if not math.isfinite(rigid):
-        raise TrackerError(f"camera-mouse: max_rigid_error must be finite, got {rigid}")
+    fov = _number(options, "fov_deg", 60.0, float, "a number of degrees")
+    redetect = _number(options, "redetect_every", 5, int, "a whole number of frames")
+    rigid = _number(options, "max_rigid_error", 0.15, float, "a number")
     if calibration is None:
         raise TrackerError(
             "camera-mouse: needs the landmark layout as its calibration file "
