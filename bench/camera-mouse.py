@@ -1,7 +1,8 @@
 """Camera-mouse speed at 640x480, single-threaded: tracking vs full detection per frame.
 
 Frames come from omnidev.sim.monitor (drift trajectory, 30 frames). Figures:
-- track_ms_per_frame: the tracking stage (sec. 6.2.4, four landmarks) + cursor;
+- track_ms_per_frame: the tracking stage (sec. 6.2.4, four landmarks; ``predict="flow"``,
+  the plugin's default) + cursor;
   track_parts_ms splits it (medians): to_gray (BGR to grey, whole frame),
   landmarks (LandmarkTracker.update), cursor (corners and homography).
 - detect_ms_per_frame: the detection stage (sec. 6.2.1) + cursor.
@@ -46,7 +47,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     det_ms: list[float] = []
     trk_ms: list[float] = []
     parts: dict[str, list[float]] = {"to_gray": [], "landmarks": [], "cursor": []}
-    tracker = LandmarkTracker()
+    tracker = LandmarkTracker(predict="flow")  # the camera-mouse plugin's default
     first = detect_landmarks(frames[0], layout)
     assert first is not None, "no landmarks detected in the benchmark's first frame"
     radius = (

@@ -10,9 +10,9 @@ with the rendered truth on a 1920x1080 screen:
 - frames with three or more missing: no cursor (the pointer holds);
 - scenes with no monitor or only three landmarks: no cursor at all.
 
-The tracker runs with its defaults (prediction by camera rotation with a 60
-degree field of view: the fixtures' camera has 56.1 degrees, so the prior is
-deliberately not the truth).
+The tracker runs with its defaults (prediction by the monitor plane's image motion,
+flow, whose fallback is the camera's rotation with a 60 degree field of view: the
+fixtures' camera has 56.1 degrees, so the prior is deliberately not the truth).
 """
 
 from __future__ import annotations
@@ -68,16 +68,24 @@ def test_cursor_against_truth(fixture):
 
 
 def test_predictions_compared_on_the_partial_fixture():
-    """The dissertation's translation against similarity and camera rotation (default)."""
+    """The dissertation's translation against similarity, camera rotation (the default
+    before 2026-12-06) and the monitor plane's image motion (flow, the default). Flow
+    once gave 15.3 px here: its homography, fitted to features bunched on one side and
+    on drifting screen content, extrapolated up to 100 px off; with no features on the
+    screen and a camera turn where that extrapolates the features nearest the missing
+    landmarks better, 3.5 px."""
     fx = FIXTURES / "partial-640x480"
     rms = {m: evaluate_fixture(fx, "homography", m)["predicted"] for m in ("translation",
-           "similarity", "rotation")}  # fmt: skip
+           "similarity", "rotation", "flow")}  # fmt: skip
     print(
         "\npartial-640x480, frames with landmarks predicted: "
         + ", ".join(f"{m} RMS {r['rms_px']:.2f} px (max {r['max_px']:.2f})" for m, r in rms.items())
     )
-    assert rms["rotation"]["rms_px"] < rms["translation"]["rms_px"]
-    assert rms["rotation"]["rms_px"] <= 10.0
+    for m in ("rotation", "flow"):
+        assert rms[m]["with_cursor"] == rms[m]["frames"] > 50
+        assert rms[m]["rms_px"] < rms["translation"]["rms_px"]
+        assert rms[m]["rms_px"] <= 10.0
+    assert rms["flow"]["rms_px"] <= 5.0
 
 
 def test_three_or_more_missing_holds_then_relocks():

@@ -33,14 +33,15 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--predict",
         choices=("flow", "rotation", "similarity", "translation"),
-        default="rotation",
+        default="flow",
         help="how one or two missing landmarks are predicted (translation: the dissertation's)",
     )
     p.add_argument(
         "--fov-deg",
         type=float,
         default=60.0,
-        help="the webcam's horizontal field of view, degrees (--predict rotation; flow's fallback)",
+        help="the webcam's horizontal field of view, degrees (--predict rotation; flow's "
+        "fallback when too few features agree)",
     )
     add_pointer_arguments(p)
     p.set_defaults(func=run)
@@ -60,7 +61,7 @@ def register(sub: Any) -> None:
     ev.add_argument(
         "--predict",
         choices=("flow", "rotation", "similarity", "translation"),
-        default="rotation",
+        default="flow",
         help="how missing landmarks are predicted (translation: the dissertation's)",
     )
     ev.add_argument("--fov-deg", type=float, default=60.0, help="webcam horizontal field of view")
@@ -189,7 +190,7 @@ def run_landmarks(args: argparse.Namespace) -> int:
 def evaluate_fixture(
     folder: Path,
     method: str,
-    predict: str = "rotation",
+    predict: str = "flow",
     layout: Path | None = None,
     fov_deg: float = 60.0,
 ) -> dict[str, Any]:

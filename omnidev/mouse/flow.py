@@ -1,15 +1,17 @@
 """Image motion of the monitor plane, for predicting landmarks out of the picture (issue 13).
 
 While one or two landmarks are missing, :class:`PlaneFlow` follows corner features on
-the monitor (screen content, bezel, the landmark cards: all on one plane) from a
+the monitor (bezel, the landmark cards and what lies just around them; screen content
+too unless ``exclude`` names the screen: a video or a scrolling page moves on it) from a
 *reference* frame (the last frame before a landmark went missing) through every later
 frame by pyramidal Lucas-Kanade, checked forwards and backwards. The homography from the
 reference to the current frame, fitted by RANSAC to the surviving features together with
 the landmarks still found (weighted as many features), carries the missing landmarks'
-reference positions into the current frame. Measuring from the reference rather than
-chaining frame-to-frame predictions keeps the error from accumulating; features that
-leave the picture are replaced by new ones whose reference positions come from the
-current homography.
+reference positions into the current frame (the tracker may take a camera turn fitted to
+the same points instead, :func:`omnidev.mouse.track.turn_extrapolates_better`).
+Measuring from the reference rather than chaining frame-to-frame predictions keeps the
+error from accumulating; features that leave the picture are replaced by new ones whose
+reference positions come from the current homography (or turn).
 
 Pure: grey uint8 images in, pixel positions out (image pixels, x right, y down, origin at
 the centre of the top-left pixel).
@@ -17,6 +19,7 @@ the centre of the top-left pixel).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import cv2
@@ -38,6 +41,9 @@ class PlaneFlow:
         ransac_px: RANSAC reprojection threshold (px).
         fb_px: largest forward-backward Lucas-Kanade disagreement (px) of a kept feature.
         landmark_weight: how many features a found landmark counts as in the fit.
+        exclude: the screen's corners (4, 2) from the landmark quadrilateral, or None:
+            no features are taken inside it (grown by ``exclude_grow``), as a video or a
+            scrolling page moves across the screen and would carry the fit with it.
     """
 
     max_features: int = 150
@@ -53,6 +59,8 @@ class PlaneFlow:
     gray: NDArray[np.uint8] | None = None
     H: FloatArray | None = None  # reference -> current frame
     inliers: int = 0
+    exclude: Callable[[FloatArray], FloatArray] | None = None
+    exclude_grow: float = 1.03
 
     @property
     def active(self) -> bool:
@@ -79,6 +87,11 @@ class PlaneFlow:
         cv2.fillConvexPoly(mask, poly, 255)
         side = float(np.median(np.linalg.norm(quad - np.roll(quad, -1, axis=0), axis=1)))
         dist = max(4.0, side / 25.0)
+        if self.exclude is not None:
+            screen = self.exclude(quad)
+            mid = screen.mean(axis=0)
+            cut = np.round(mid + (screen - mid) * self.exclude_grow).astype(np.int32)
+            cv2.fillConvexPoly(mask, cut, 0)
         p = cv2.goodFeaturesToTrack(gray, n, 0.01, dist, mask=mask, blockSize=5)
         return np.zeros((0, 2)) if p is None else p.reshape(-1, 2).astype(np.float64)
 
@@ -121,11 +134,16 @@ class PlaneFlow:
         self.H = np.asarray(H, np.float64)
         return self.H
 
-    def replenish(self, gray: NDArray[np.uint8], quad: FloatArray) -> None:
+    def replenish(
+        self,
+        gray: NDArray[np.uint8],
+        quad: FloatArray,
+        to_ref: Callable[[FloatArray], FloatArray] | None = None,
+    ) -> None:
         """Add features when fewer than ``min_features`` remain: new corners inside the
-        current ``quad`` (4, 2), their reference positions through the inverse of the
-        current homography."""
-        if self.H is None or len(self.cur) >= self.min_features:
+        current ``quad`` (4, 2), their reference positions through ``to_ref`` (current ->
+        reference pixels), by default the inverse of the current homography."""
+        if len(self.cur) >= self.min_features or (to_ref is None and self.H is None):
             return
         new = self._features(gray, quad, self.max_features - len(self.cur))
         if not len(new):
@@ -135,8 +153,13 @@ class PlaneFlow:
             new = new[d > 3.0]
         if not len(new):
             return
-        inv = np.linalg.inv(self.H)
-        ref = cv2.perspectiveTransform(new.reshape(-1, 1, 2), inv).reshape(-1, 2)
+        if to_ref is not None:
+            ref = to_ref(new)
+        else:
+            assert self.H is not None
+            inv = np.linalg.inv(self.H)
+            ref = np.asarray(cv2.perspectiveTransform(new.reshape(-1, 1, 2), inv), np.float64)
+            ref = ref.reshape(-1, 2)
         self.ref = np.concatenate([self.ref, ref])
         self.cur = np.concatenate([self.cur, new])
 
@@ -157,7 +180,9 @@ def frame_homography(
     ransac_px: float = 2.0,
 ) -> FloatArray | None:
     """The monitor plane's homography from ``prev`` to ``cur`` (grey uint8), from corner
-    features inside the landmark quadrilateral ``quad`` (4, 2) of ``prev`` followed by
+    features inside the landmark quadrilateral ``quad`` (4, 2) of ``prev``, the screen's
+    among them (from one frame to the next its content moves little; without them the
+    bezel's few features misplaced the windows on the oblique fixture), followed by
     Lucas-Kanade (forward-backward checked) and fitted by RANSAC; None when fewer than
     10 features agree."""
     f = PlaneFlow(max_features=features, ransac_px=ransac_px)

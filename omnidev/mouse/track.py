@@ -424,6 +424,85 @@ def rotation_between(
     return R
 
 
+def rotation_and_focal(
+    src: NDArray[np.float64],
+    dst: NDArray[np.float64],
+    c: tuple[float, float],
+    fov_deg: tuple[float, float] = (25.0, 130.0),
+    steps: int = 43,
+) -> tuple[NDArray[np.float64], float]:
+    """The camera rotation (3 x 3) and focal length (px) that best carry ``src`` onto
+    ``dst`` (N x 2 pixels, N >= 2) for a pinhole camera turning about its centre with
+    principal point ``c``: :func:`rotation_between` at each of ``steps`` focal lengths
+    spanning the horizontal field of view ``fov_deg`` (image width 2 c_x + 1), the one
+    with the least squared reprojection error kept."""
+    half = c[0] + 0.5
+    fs = half / np.tan(np.radians(np.linspace(fov_deg[0], fov_deg[1], steps)) / 2)
+
+    def rays(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        d = np.empty((len(fs), len(p), 3))
+        d[:, :, 0] = (p[:, 0] - c[0])[None, :] / fs[:, None]
+        d[:, :, 1] = (p[:, 1] - c[1])[None, :] / fs[:, None]
+        d[:, :, 2] = 1.0
+        out: NDArray[np.float64] = d / np.linalg.norm(d, axis=2, keepdims=True)
+        return out
+
+    a, b = rays(src), rays(dst)
+    U, _, Vt = np.linalg.svd(np.einsum("fni,fnj->fij", b, a))
+    det = np.sign(np.linalg.det(U @ Vt))
+    U[:, :, 2] *= det[:, None]
+    R = U @ Vt  # (F, 3, 3)
+    q = np.einsum("fij,fnj->fni", R, a)
+    z = np.where(q[:, :, 2] > 1e-6, q[:, :, 2], 1e-6)
+    err = (c[0] + fs[:, None] * q[:, :, 0] / z - dst[None, :, 0]) ** 2 + (
+        c[1] + fs[:, None] * q[:, :, 1] / z - dst[None, :, 1]
+    ) ** 2
+    k = int(np.argmin(err.sum(axis=1)))
+    return np.asarray(R[k], np.float64), float(fs[k])
+
+
+def turn_extrapolates_better(
+    ref: NDArray[np.float64],
+    cur: NDArray[np.float64],
+    ref_found: NDArray[np.float64],
+    cur_found: NDArray[np.float64],
+    ref_missing: NDArray[np.float64],
+    c: tuple[float, float],
+    weight: int,
+    hold: float = 0.25,
+    min_features: int = 16,
+) -> tuple[NDArray[np.float64], float] | None:
+    """Whether a camera turn (:func:`rotation_and_focal`, 4 parameters) should carry the
+    missing landmarks rather than the monitor plane's homography (8): the rotation and
+    focal fitted to the plane's features (``ref`` -> ``cur``, N x 2, the homography's
+    inliers) and the found landmarks (weighted ``weight`` times), or None for the
+    homography.
+
+    A homography fitted to features bunched on one side of the monitor extrapolates
+    badly to a landmark far outside them, a turn is stiffer but ignores the hand's
+    shift. The test is the extrapolation itself: the ``hold`` share of features nearest
+    the missing landmarks (reference positions ``ref_missing``) is left out, both models
+    are fitted to the rest, and the one that carries the left-out features closer (median
+    px) wins. Below ``min_features`` features the turn is taken."""
+    if len(ref) >= min_features:
+        d = np.linalg.norm(ref[:, None, :] - ref_missing[None, :, :], axis=2).min(axis=1)
+        out = d <= np.quantile(d, hold)
+        src = np.concatenate([ref[~out]] + [ref_found] * weight)
+        dst = np.concatenate([cur[~out]] + [cur_found] * weight)
+        H, _ = cv2.findHomography(src, dst, 0)
+        if H is None:
+            return None
+        R, f = rotation_and_focal(src, dst, c)
+        plane = apply_h(np.asarray(H, np.float64), ref[out])
+        e_plane = np.median(np.linalg.norm(plane - cur[out], axis=1))
+        e_turn = np.median(np.linalg.norm(rotate_points(ref[out], R, f, c) - cur[out], axis=1))
+        if e_turn >= e_plane:
+            return None
+    src = np.concatenate([ref] + [ref_found] * weight)
+    dst = np.concatenate([cur] + [cur_found] * weight)
+    return rotation_and_focal(src, dst, c)
+
+
 def _bar_length(n: int, r: float) -> int:
     """Sampling-bar length for a landmark of radius ``r`` px: ``n``, shortened (even, >= 2)
     so that its inner half stays inside a small disc (r < n/2 + 1 at 320 x 240)."""
@@ -692,6 +771,13 @@ class LandmarkTracker:
         self.coasting += 1
         return None
 
+    def _judged(self, found: list[bool]) -> list[bool]:
+        """The found landmarks the plane's motion may judge: those found in the last
+        frame too. A landmark coming back after being predicted has no measured position
+        for the plane to carry (its prediction, a few px off after a sweep, would reject
+        the landmark itself); the return check of :meth:`_outliers` judges it."""
+        return [ok and was for ok, was in zip(found, self.found, strict=True)]
+
     def _plane_guess(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
         """Where the monitor plane's frame-to-frame homography carries the last centres."""
         assert self.prev_gray is not None and self.centers is not None
@@ -760,7 +846,7 @@ class LandmarkTracker:
         if plane_guess is not None:
             moved = float(np.median(np.linalg.norm(plane_guess - self.centers, axis=1)))
             tol = max(5.0, self.flow_tol * self.radius) + 0.1 * moved
-            for i in _off_plane(new, found, plane_guess, tol):
+            for i in _off_plane(new, self._judged(found), plane_guess, tol):
                 found[i], hits[i], new[i] = False, None, self.centers[i]
             if sum(found) < 2:
                 self._coast(gray, found, new)
@@ -777,7 +863,7 @@ class LandmarkTracker:
                 pred = apply_h(Hf, self.ref_centers)
                 moved = float(np.median(np.linalg.norm(pred - self.centers, axis=1)))
                 tol = max(5.0, self.flow_tol * self.radius) + 0.1 * moved
-                for i in _off_plane(new, found, pred, tol):
+                for i in _off_plane(new, self._judged(found), pred, tol):
                     found[i], hits[i], new[i] = False, None, self.centers[i]
                 if sum(found) < 2:
                     self._coast(gray, found, new)
@@ -800,7 +886,20 @@ class LandmarkTracker:
             if self.flow.active and self.ref_centers is not None:
                 idx = [i for i, ok in enumerate(found) if ok]
                 H = self.flow.fit(self.ref_centers[idx], new[idx])
-                if H is not None:
+                turn = None
+                if H is not None and self.focal_px:
+                    turn = turn_extrapolates_better(
+                        self.flow.ref, self.flow.cur, self.ref_centers[idx], new[idx],
+                        self.ref_centers[missing], self.principal, self.flow.landmark_weight,
+                    )  # fmt: skip
+                if turn is not None:
+                    R, f = turn
+                    c = self.principal
+                    new[missing] = rotate_points(self.ref_centers[missing], R, f, c)
+                    self.flow.replenish(gray, new, lambda p: rotate_points(p, R.T, f, c))
+                    missing = []
+                    self.predicted_by = "flow-turn"
+                elif H is not None:
                     new[missing] = apply_h(H, self.ref_centers[missing])
                     self.flow.replenish(gray, new)
                     missing = []

@@ -12,12 +12,13 @@ violations, gross errors (> 50 px).
 
 Options: ``frames`` per video (150: 5 s at 30 fps, every kind of motion in the pool);
 ``configs``: comma-separated tracker configurations measured on the same frames:
-``default`` (the tracker's defaults, prediction by camera rotation, no lens model, no
-shutter model), ``calibrated`` (given the video camera's calibration, as
+``default`` (the tracker's defaults: prediction by the monitor plane's image motion, no
+lens model, no shutter model), ``calibrated`` (given the video camera's calibration, as
 cv2.calibrateCamera would give it, and its rolling-shutter readout time), ``lens`` (the
-calibration only), ``shutter`` (the readout only), ``flow`` (the monitor plane's image motion),
-``translation`` (the dissertation's
-prediction), ``similarity``, ``rotation``, ``affine`` (the dissertation's cursor).
+calibration only), ``shutter`` (the readout only), ``flow`` (the default's prediction,
+named), ``translation`` (the dissertation's prediction), ``similarity``, ``rotation``
+(the default before 2026-12-06: the camera's turn from the landmarks alone), ``affine``
+(the dissertation's cursor).
 Pooled per-frame figures come from per-scene sums and histograms (p95 to ~2 %).
 """
 

@@ -27,14 +27,18 @@ Calibration file: the landmark layout (JSON or TOML with the keys of
 offsets from the screen corners, circle and square sizes, all in mm).
 
 Options: ``method`` ("homography", default, or the dissertation's "affine");
-``predict`` ("rotation", default; "flow": the monitor plane's homography from a reference
-frame, fitted to features tracked on the monitor and the landmarks found, see
-:mod:`omnidev.mouse.flow`; with it the same image motion places the tracking
-windows and rejects hits off the plane's motion during fast moves, and the
-landmarks keep following it for up to 2 s while fewer than two are found;
-"rotation": the camera turning about its center, fitted to the landmarks found
-(flow's fallback);
-"similarity"; or the dissertation's "translation");
+``predict`` ("flow", default: the monitor plane's motion from a reference frame, fitted
+to features tracked on the bezel, the cards and the wall around them (not on the screen,
+whose content can move) and the landmarks found, see :mod:`omnidev.mouse.flow`; the
+missing landmarks are carried by the plane's homography or, where a camera turn with a
+fitted focal length extrapolates the features nearest them better, by that turn; the
+same image motion places the tracking windows and rejects hits off the plane's motion
+during fast moves, and the landmarks keep following it for up to 2 s while fewer than
+two are found; "rotation": the camera turning about its center, fitted to the landmarks
+found (the default before 2026-12-06; flow's fallback); "similarity"; or the
+dissertation's "translation"). Issue 13, held out 50100-50199, rotation -> flow: one or
+two predicted, pooled RMS 41.5 -> 21.1 px, all four visible 23.7 -> 6.4 px, cursor
+share 0.912 -> 0.919 (docs/camera-mouse.md);
 ``fov_deg`` (the webcam's horizontal field of view for "rotation", default 60);
 ``redetect_every`` (frames, default 5; 0 turns re-detection while predicting
 off); ``camera``: the webcam's calibration (an OpenCV file with ``camera_matrix`` and
@@ -84,7 +88,7 @@ class CameraMouse:
         self,
         layout: LandmarkLayout,
         method: str = "homography",
-        predict: str = "rotation",
+        predict: str = "flow",
         redetect_every: int = 5,
         fov_deg: float = 60.0,
         *,
@@ -121,6 +125,7 @@ class CameraMouse:
         self.screen_px = screen_px
         self._prev: tuple[NDArray[np.float64], int, NDArray[np.bool_]] | None = None
         self.tracker = LandmarkTracker(predict=predict)
+        self.tracker.flow.exclude = lambda quad: screen_corners_from_landmarks(quad, layout)
         self.locked = False
         self.size: tuple[int, int] | None = None
         self._weak = 0  # consecutive frames with predicted landmarks
@@ -336,7 +341,7 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> Camera
     return CameraMouse(
         load_layout(calibration),
         str(options.get("method", "homography")),
-        str(options.get("predict", "rotation")),
+        str(options.get("predict", "flow")),
         redetect,
         fov,
         lens=lens,
