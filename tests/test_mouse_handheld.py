@@ -197,11 +197,11 @@ def test_a_tracked_set_that_is_no_longer_a_flat_rectangle_goes_back_to_detection
 
 
 def test_flow_takes_no_features_on_a_playing_video() -> None:
-    """Tuning video 145 (a video playing on the screen): with features taken on the screen,
-    the playing video carried the monitor plane's fit and the frames with one or two
-    landmarks predicted had the cursor 38.6 px RMS off; with the screen left out (the
-    plugin's ``flow.exclude``, from the layout) the fit follows the bezel, cards and wall:
-    9.7 px."""
+    """Tuning video 189 (320x240, a video playing on the screen): with features taken on
+    the screen, the playing video carried the monitor plane's fit and the frames with one
+    or two landmarks predicted had the cursor 46.9 px RMS off; with the screen left out
+    (the plugin's ``flow.exclude``, from the layout) the fit follows the bezel, cards and
+    wall: 8.8 px."""
     import tempfile
     from pathlib import Path
 
@@ -209,7 +209,7 @@ def test_flow_takes_no_features_on_a_playing_video() -> None:
     from omnidev.mouse.evaluate import video_errors
     from omnidev.tracking import open_tracker
 
-    video = draw_video(145, frames=100)
+    video = draw_video(189, frames=100)
     assert video.describe()["monitor"]["content"] == "video"
     r = HandheldRenderer(video)
     with tempfile.TemporaryDirectory() as tmp:
@@ -229,8 +229,24 @@ def test_flow_takes_no_features_on_a_playing_video() -> None:
         n: video_errors(c, truth, kind=video.kind).errors["predicted"] for n, c in cursors.items()
     }
     rms = {n: float(np.sqrt(np.mean(np.square(e)))) for n, e in pred.items()}
-    print(f"\nvideo 145, one or two predicted: screen left out {rms['off']:.1f} px "
+    print(f"\nvideo 189, one or two predicted: screen left out {rms['off']:.1f} px "
           f"({len(pred['off'])} frames), features on the screen {rms['on']:.1f} px")  # fmt: skip
-    assert len(pred["off"]) >= 20
-    assert rms["on"] > 25.0  # the failure this guards against is in this video
-    assert rms["off"] < 15.0
+    assert len(pred["off"]) >= 40
+    assert rms["on"] > 30.0  # the failure this guards against is in this video
+    assert rms["off"] < 12.0
+
+
+def test_landmarks_coming_back_while_coasting_are_judged_by_the_plane() -> None:
+    """Tuning video 151: flow coasts through frames with fewer than two landmarks found;
+    two come back. When landmarks coming back were exempt from the plane's check there
+    too, the cursor stayed about 48 px off for 20 frames (37.7 px RMS over 37 predicted
+    frames); judged by the plane while coasting, 2.8 px over 15."""
+    from omnidev.evaluation.tasks.mouse import run_video
+
+    res = run_video(151, frames=100, configs={"default": {}})
+    pred = res["errors"]["default"].errors["predicted"]
+    print(f"\nvideo 151, one or two predicted: {len(pred)} frames, RMS "
+          f"{float(np.sqrt(np.mean(np.square(pred)))):.2f} px, max {max(pred):.1f}")  # fmt: skip
+    assert len(pred) >= 10
+    assert float(np.sqrt(np.mean(np.square(pred)))) < 5.0
+    assert max(pred) < 15.0
