@@ -250,3 +250,18 @@ def test_landmarks_coming_back_while_coasting_are_judged_by_the_plane() -> None:
     assert len(pred) >= 10
     assert float(np.sqrt(np.mean(np.square(pred)))) < 5.0
     assert max(pred) < 15.0
+
+
+def test_a_relock_gives_flow_the_frame_it_was_detected_on() -> None:
+    """Video 50270 (held out, then looked at): detection re-locked on frame 97 after a
+    stretch without a lock; the tracker still held a frame from before, and on frame 98
+    flow took the plane's motion from that stale frame to the new one: the windows went
+    astray and the cursor was 971 px off. Locked with its own frame, every all-four frame
+    is within a few px."""
+    from omnidev.evaluation.tasks.mouse import run_video
+
+    res = run_video(50270, frames=100, configs={"default": {}})
+    all4 = res["errors"]["default"].errors["all4"]
+    print(f"\nvideo 50270, all four visible: {len(all4)} frames, max {max(all4):.2f} px")
+    assert len(all4) >= 30
+    assert max(all4) < 10.0

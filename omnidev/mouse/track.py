@@ -642,8 +642,18 @@ class LandmarkTracker:
     coast_frames: int = 60
     coasting: int = 0
 
-    def lock(self, centers: NDArray[np.float64], radius: float | NDArray[np.float64]) -> None:
-        """Start tracking from the detection stage's four centers (TL, TR, BR, BL)."""
+    def lock(
+        self,
+        centers: NDArray[np.float64],
+        radius: float | NDArray[np.float64],
+        gray: NDArray[np.uint8] | None = None,
+    ) -> None:
+        """Start tracking from the detection stage's four centers (TL, TR, BR, BL),
+        measured on the grey frame ``gray`` (the previous frame for the next update's
+        image motion; None: no image motion until a frame has been tracked). A frame
+        kept from before the lock, with these centers, gave flow a wrong plane motion
+        (held-out video 50270: a cursor 971 px off right after a re-detection)."""
+        self.prev_gray = gray
         self.centers = np.asarray(centers, np.float64).reshape(4, 2).copy()
         self.previous = None
         self.radii = np.broadcast_to(np.asarray(radius, np.float64), (4,)).copy()

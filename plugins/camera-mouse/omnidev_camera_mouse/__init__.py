@@ -195,7 +195,7 @@ class CameraMouse:
                     if self.redetect_every:
                         det = detect_landmarks(frame.image, self.layout)
                         if det is not None:
-                            self.tracker.lock(det.centers, self._radius_px(det.centers))
+                            self.tracker.lock(det.centers, self._radius_px(det.centers), gray)
                             self.relocks += 1
                             return self._sample(frame, det.centers, w, h)
                     return None
@@ -212,7 +212,7 @@ class CameraMouse:
                     det = detect_landmarks(frame.image, self.layout)
                     if det is not None:
                         centers = det.centers
-                        self.tracker.lock(centers, self._radius_px(centers))
+                        self.tracker.lock(centers, self._radius_px(centers), gray)
                         self._weak = 0
                         self.relocks += 1
         if not self.locked:
@@ -220,7 +220,7 @@ class CameraMouse:
             if det is None:
                 return None
             centers = det.centers
-            self.tracker.lock(centers, self._radius_px(centers))
+            self.tracker.lock(centers, self._radius_px(centers), gray)
             self.locked = True
             self._weak = 0
         assert centers is not None
