@@ -336,6 +336,13 @@ def _ring_contrasts(
     return np.asarray(ring - core / 9.0, np.float64)
 
 
+def focal_range_px(width: int, fov_range_deg: tuple[float, float]) -> tuple[float, float]:
+    """The focal lengths (px, shortest first) of a ``width``-px-wide pinhole camera whose
+    horizontal field of view spans ``fov_range_deg`` (degrees, narrowest first)."""
+    lo, hi = fov_range_deg
+    return (width / 2 / math.tan(math.radians(hi) / 2), width / 2 / math.tan(math.radians(lo) / 2))
+
+
 def rigid_plane_error(
     plane_to_image: NDArray[np.float64],
     center_px: NDArray[np.float64],
@@ -567,11 +574,7 @@ def detect_landmarks(
     disc_mm2 = math.pi * (layout.circle_diameter_mm / 2.0) ** 2
     h_img, w_img = gray.shape
     centre = np.array([(w_img - 1) / 2.0, (h_img - 1) / 2.0])
-    fov_lo, fov_hi = params.fov_range_deg
-    focal_range = (
-        w_img / 2 / math.tan(math.radians(fov_hi) / 2),
-        w_img / 2 / math.tan(math.radians(fov_lo) / 2),
-    )
+    focal_range = focal_range_px(w_img, params.fov_range_deg)
     # Disc areas, then the rigid-plane check, vectorized over the candidates.
     cq = np.asarray(candidates)
     cg = np.asarray(cand_groups)

@@ -65,7 +65,13 @@ from numpy.typing import NDArray
 from omnidev import Frame, PointerSample
 from omnidev.errors import ConfigError, TrackerError
 from omnidev.inputfile import loads_json, loads_toml, read_text
-from omnidev.mouse.detect import DetectParams, detect_landmarks, rigid_plane_error, to_gray
+from omnidev.mouse.detect import (
+    DetectParams,
+    detect_landmarks,
+    focal_range_px,
+    rigid_plane_error,
+    to_gray,
+)
 from omnidev.mouse.geometry import (
     Lens,
     cursor_from_corners,
@@ -152,8 +158,7 @@ class CameraMouse:
         if self.max_rigid_error <= 0 or self.size is None:
             return True
         w, h = self.size
-        lo, hi = DetectParams().fov_range_deg
-        focal = (w / 2 / math.tan(math.radians(hi) / 2), w / 2 / math.tan(math.radians(lo) / 2))
+        focal = focal_range_px(w, DetectParams().fov_range_deg)
         hmat = homography_from_4_points(self.layout.landmark_centers_mm(), centers)
         err, _ = rigid_plane_error(hmat, image_center(w, h), focal)
         return bool(err <= self.max_rigid_error)
