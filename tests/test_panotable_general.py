@@ -182,6 +182,80 @@ def test_few_fisheye_landmarks_extrapolate_to_the_zenith_through_the_pole():
     assert mx < 0.3 and mx < 0.5 * mx_f
 
 
+class EquisolidFisheye(PolyFisheyeCamera):
+    """A fisheye looking up with r = 2 f sin(a / 2): odd in the angle a from its axis, but
+    no polynomial (the renderers' fisheyes are Kannala-Brandt polynomials)."""
+
+    def radius(self, a):
+        return np.asarray(2 * self.f * np.sin(np.asarray(a, np.float64) / 2), np.float64)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_few_equisolid_landmarks_keep_an_odd_radial_to_the_zenith(seed):
+    """32 landmarks 20 degrees short of a tilted equisolid fisheye's zenith: the odd
+    powers of the angle from the pole are kept (three parameters) and hold to the zenith."""
+    base = EquisolidFisheye(300.0, 0.0, 0.0, (960, 960), (476.3, 482.9), math.radians(95))
+    cam = ImperfectCamera(base, rotation_vector(35.0, 7.0))
+    uv, xyz = landmarks(cam, 32, seed=seed, noise=0.1, top_deg=70.0)
+    g = fit_general(uv, xyz, (cam.center[0] + 2.0, cam.center[1] - 1.0))
+    rms, mx = truth_error(cam, g.mapping)
+    print(f"kept {g.terms.describe()}: {rms:.3f} / {mx:.3f} px")
+    assert g.terms == Terms(aspect=True, tilt=True, polar=True, odd=True, degree=5)
+    assert abs(g.mapping.radial(np.array([math.pi / 2]))[0]) < 1e-6
+    assert rms < 0.06 and mx < 0.2
+
+
+def _evaluate(kind: str, seed: int, n: int = 32):
+    from omnidev.panotable.evaluate import evaluate_case
+
+    case = make_case(kind, seed, size=640, n_landmarks=300)  # type: ignore[arg-type]
+    return evaluate_case(case, n_landmarks=n, seed=seed, noise_px=0.1)
+
+
+@pytest.mark.parametrize(
+    "kind,seed,kept,before",
+    [
+        # a tilted fisheye: a polynomial through the pole extrapolated 3.41 dB below
+        ("fisheye-tilt", 1908, "center, aspect, tilt, radial odd degree 5 through the pole", 3.41),
+        # a misaligned mirror: the quartic through the pole, 1 % ahead of its unified twin
+        # on the held-out landmarks, 3.85 dB below
+        ("mirror-misaligned", 1808, "center, aspect, tilt, keystone, unified radial", 3.85),
+        # an aligned mirror: the quartic, 5.2 % ahead of the unified (within one standard
+        # error of 32 landmarks), 2.09 dB below
+        ("svp-aligned", 2002, "center, unified radial", 2.09),
+    ],
+)
+def test_few_landmarks_keep_the_radial_form_that_extrapolates(kind, seed, kept, before):
+    """32 landmarks at 0.1 px (tuning seeds of docs/results.md): the order kept, and every
+    view within 2 dB of the exact maps (the issue's bound for 32 landmarks)."""
+    r = _evaluate(kind, seed)
+    gap = r.gap("general")
+    print(f"{kind} {seed}: kept {r.fit['general']['terms']}; dB below the ceiling {gap}")
+    assert r.fit["general"]["terms"] == kept
+    assert max(gap.values()) < 1.5 < before
+
+
+def test_odd_radial_table_round_trips_and_its_fast_maps_match(tmp_path):
+    """A tilted fisheye's table with the odd radial: its file rebuilds the same mapping and
+    the fast maps equal the point route."""
+    uv, xyz = landmarks(TILTED, 100, seed=3, noise=0.1)
+    cal = calibrate_general(uv, xyz, np.zeros(3), TILTED.center, TILTED.image_size)
+    assert cal.fit.terms.odd
+    p = tmp_path / "fisheye.yml"
+    save_table(p, cal)
+    back = load_table(p)
+    np.testing.assert_allclose(back.mapping.coeffs, cal.fit.mapping.coeffs, rtol=1e-9, atol=1e-9)
+    assert truth_error(TILTED, back.mapping)[1] < 0.2
+    cam = PanoTableCamera(back, "analytic")
+    for view in (Panorama(720, 180), Perspective(160, 120, 90, 40, 60)):
+        fast = build_maps(cam, view)
+        slow = project_maps(cam, view)
+        np.testing.assert_array_equal(fast.valid, slow.valid)
+        assert fast.valid.mean() > 0.5
+        assert np.max(np.abs(fast.map_x - slow.map_x)[fast.valid], initial=0) < 2e-3
+        assert np.max(np.abs(fast.map_y - slow.map_y)[fast.valid], initial=0) < 2e-3
+
+
 def test_table_reaches_below_high_landmarks_inside_the_image():
     """Landmarks 30-83 degrees up a tilted fisheye: the table reaches on below them while
     the radius stays inside the image's inscribed circle, so a panorama down to 5 degrees
