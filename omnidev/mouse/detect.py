@@ -92,6 +92,10 @@ class DetectParams:
             must not exceed this (inf turns the check off, as in the dissertation).
         canny_low, canny_high: hysteresis thresholds of the Canny edge map voting in the
             Hough transform (grey levels of the Sobel gradient).
+        faint_canny: with "predicted", the thresholds of a second edge map a side votes
+            with when its colour step was found but the first map's edges fell short of
+            the floor (a white bezel next to a white page: a step of 12-20 grey levels);
+            None: the first map only.
         refine: refine centers by the darkness-weighted centroid (else binary centroid).
         border_search: "predicted" (step 6's Hough window is a band of half-width
             max(``max_border_offset_px``, ``border_band_frac`` x the landmark-to-border
@@ -144,6 +148,7 @@ class DetectParams:
     max_area_spread: float = 1.3
     canny_low: float = 30.0
     canny_high: float = 90.0
+    faint_canny: tuple[float, float] | None = (10.0, 30.0)
     refine: bool = True
     threshold_mode: str = "both"
     border_search: str = "predicted"
@@ -562,6 +567,7 @@ def detect_landmarks(
     if not candidates:
         return None
     edges = edge_map(image, params)
+    faint: NDArray[np.uint8] | None = None  # the faint_canny map, made when first needed
     # Inward distance of the screen border from each landmark side, in mm (monitor plane).
     lm = layout.landmark_centers_mm()
     sc = layout.screen_corners_mm()
@@ -621,6 +627,19 @@ def detect_landmarks(
                 e, span, line = side_edge_strength(
                     edges, a - nrm * band, b - nrm * band, 2 * band, params
                 )
+                if e < params.min_edge_fraction * span and params.faint_canny is not None:
+                    if faint is None:
+                        faint = edge_map(
+                            image,
+                            replace(
+                                params,
+                                canny_low=params.faint_canny[0],
+                                canny_high=params.faint_canny[1],
+                            ),
+                        )
+                    e, span, line = side_edge_strength(
+                        faint, a - nrm * band, b - nrm * band, 2 * band, params
+                    )
             else:
                 depth = max(4.0, 2.0 * inset_mm[i] * px_per_mm)
                 e, span, line = side_edge_strength(edges, p, q, depth, params)
