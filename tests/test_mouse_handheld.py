@@ -158,23 +158,33 @@ def test_slide_content_on_a_small_screen_texture():
         assert float(c.base.std()) > 0.02  # content (linear 0-1), not a blank
 
 
+def assert_detected_only_by_the_change(
+    seed: int, before: DetectParams, step: int, min_frames: int
+) -> None:
+    """On the frames (every ``step``-th of 100) of video ``seed`` with the four landmarks
+    in view, detection with ``before`` finds nothing and with the defaults finds all four,
+    each within 0.3 px of the truth (1 px under 2 px of motion blur or more)."""
+    video = draw_video(seed, frames=100)
+    r = HandheldRenderer(video)
+    frames = [i for i in range(0, 100, step) if all(r.truth(i)["visible"])]
+    assert len(frames) >= min_frames
+    for i in frames:
+        img = r.render(i)
+        assert detect_landmarks(img, video.layout, before) is None, f"frame {i}"
+        found = detect_landmarks(img, video.layout)
+        assert found is not None, f"frame {i}"
+        true_uv = np.array(r.truth(i)["landmarks_uv"])
+        bound = 0.3 if r.truth(i)["blur_px"] < 2.0 else 1.0
+        assert float(np.hypot(*(found.centers - true_uv).T).max()) < bound, f"frame {i}"
+
+
 def test_border_step_sampled_farther_out_finds_landmarks_the_nearest_samples_missed() -> None:
     """Tuning video 103 (640x480): with the colour step sampled only at the nearest
     offset (``border_step_scales=(1.0,)``, the code before) no side of the true landmark
     group stepped and no frame was detected; with 1.5 x and 2 x too every frame is,
     each landmark within 0.3 px of the truth."""
-    video = draw_video(103, frames=100)
-    r = HandheldRenderer(video)
     nearest_only = dataclasses.replace(DetectParams(), border_step_scales=(1.0,))
-    frames = [i for i in range(0, 100, 5) if all(r.truth(i)["visible"])]
-    assert len(frames) >= 15
-    for i in frames:
-        img = r.render(i)
-        assert detect_landmarks(img, video.layout, nearest_only) is None
-        found = detect_landmarks(img, video.layout)
-        assert found is not None, f"frame {i}"
-        true_uv = np.array(r.truth(i)["landmarks_uv"])
-        assert float(np.hypot(*(found.centers - true_uv).T).max()) < 0.3
+    assert_detected_only_by_the_change(103, nearest_only, step=5, min_frames=15)
 
 
 def test_a_white_bezel_next_to_a_white_page_votes_with_the_faint_edge_map() -> None:
@@ -184,19 +194,8 @@ def test_a_white_bezel_next_to_a_white_page_votes_with_the_faint_edge_map() -> N
     (``faint_canny=None``, the code before). With the faint map (10 / 30) on those
     sides every frame with the four in view is, each landmark within 0.3 px (1 px
     under 4-10 px of motion blur)."""
-    video = draw_video(231, frames=100)
-    r = HandheldRenderer(video)
     one_map = dataclasses.replace(DetectParams(), faint_canny=None)
-    frames = [i for i in range(0, 100, 3) if all(r.truth(i)["visible"])]
-    assert len(frames) >= 10
-    for i in frames:
-        img = r.render(i)
-        assert detect_landmarks(img, video.layout, one_map) is None
-        found = detect_landmarks(img, video.layout)
-        assert found is not None, f"frame {i}"
-        true_uv = np.array(r.truth(i)["landmarks_uv"])
-        bound = 0.3 if r.truth(i)["blur_px"] < 2.0 else 1.0
-        assert float(np.hypot(*(found.centers - true_uv).T).max()) < bound, f"frame {i}"
+    assert_detected_only_by_the_change(231, one_map, step=3, min_frames=10)
 
 
 def test_a_tracked_set_that_is_no_longer_a_flat_rectangle_goes_back_to_detection() -> None:
