@@ -93,9 +93,9 @@ class DetectParams:
         canny_low, canny_high: hysteresis thresholds of the Canny edge map voting in the
             Hough transform (grey levels of the Sobel gradient).
         faint_canny: with "predicted", the thresholds of a second edge map a side votes
-            with when its colour step was found but the first map's edges fell short of
-            the floor (a white bezel next to a white page: a step of 12-20 grey levels);
-            None: the first map only.
+            with when its colour step was found at the nearest offset but the first
+            map's edges fell short of the floor (a white bezel next to a white page: a
+            step of 12-20 grey levels); None: the first map only.
         refine: refine centers by the darkness-weighted centroid (else binary centroid).
         border_search: "predicted" (step 6's Hough window is a band of half-width
             max(``max_border_offset_px``, ``border_band_frac`` x the landmark-to-border
@@ -610,10 +610,11 @@ def detect_landmarks(
                 # outer edge, between an overhanging card and the screen, stays out)
                 a, b = screen[i], screen[(i + 1) % 4]
                 step_px = max(2.0, params.border_band_frac * inset_mm[i] * px_per_mm)
-                if params.min_border_step > 0 and not any(
+                stepped = [
                     _border_step(image, a, b, k * step_px, params)
                     for k in params.border_step_scales
-                ):
+                ]
+                if params.min_border_step > 0 and not any(stepped):
                     weak += 1  # no change of colour across the border: no vote
                     if weak > 4 - params.min_border_sides:
                         break
@@ -627,7 +628,13 @@ def detect_landmarks(
                 e, span, line = side_edge_strength(
                     edges, a - nrm * band, b - nrm * band, 2 * band, params
                 )
-                if e < params.min_edge_fraction * span and params.faint_canny is not None:
+                # the faint map only where the colour steps right at the border (on a
+                # textured wall its edges line up by chance: fixture three-landmarks)
+                if (
+                    e < params.min_edge_fraction * span
+                    and params.faint_canny is not None
+                    and (params.min_border_step <= 0 or stepped[0])
+                ):
                     if faint is None:
                         faint = edge_map(
                             image,
