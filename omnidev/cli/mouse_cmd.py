@@ -14,6 +14,7 @@ from typing import Any
 
 from omnidev.cli.foreground import add_pointer_arguments
 from omnidev.errors import OmnidevError
+from omnidev.mouse import DEFAULT_PREDICT, PREDICTIONS
 
 
 def register(sub: Any) -> None:
@@ -32,8 +33,8 @@ def register(sub: Any) -> None:
     )
     p.add_argument(
         "--predict",
-        choices=("flow", "rotation", "similarity", "translation"),
-        default="flow",
+        choices=PREDICTIONS,
+        default=DEFAULT_PREDICT,
         help="how one or two missing landmarks are predicted (translation: the dissertation's)",
     )
     p.add_argument(
@@ -60,8 +61,8 @@ def register(sub: Any) -> None:
     )
     ev.add_argument(
         "--predict",
-        choices=("flow", "rotation", "similarity", "translation"),
-        default="flow",
+        choices=PREDICTIONS,
+        default=DEFAULT_PREDICT,
         help="how missing landmarks are predicted (translation: the dissertation's)",
     )
     ev.add_argument("--fov-deg", type=float, default=60.0, help="webcam horizontal field of view")
@@ -190,7 +191,7 @@ def run_landmarks(args: argparse.Namespace) -> int:
 def evaluate_fixture(
     folder: Path,
     method: str,
-    predict: str = "flow",
+    predict: str = DEFAULT_PREDICT,
     layout: Path | None = None,
     fov_deg: float = 60.0,
 ) -> dict[str, Any]:

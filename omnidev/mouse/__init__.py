@@ -12,3 +12,11 @@ the monitor plane in mm (x right, y down), origin at the screen's top-left corne
 corners always in the order TL, TR, BR, BL; the cursor normalized to [0, 1] x [0, 1] of the
 screen (0, 0 = top-left corner of the screen, 1, 1 = bottom-right).
 """
+
+PREDICTIONS = ("flow", "rotation", "similarity", "translation")
+"""How the camera mouse may predict landmarks out of view (``predict``): the monitor plane's
+image motion, the camera's turn, a similarity of the found ones, or the dissertation's
+translation (docs/camera-mouse.md)."""
+
+DEFAULT_PREDICT = "flow"
+"""The prediction the plugin, ``omnidev mouse`` and ``omnidev mouse-eval`` use unless told."""

@@ -65,6 +65,7 @@ from numpy.typing import NDArray
 from omnidev import Frame, PointerSample
 from omnidev.errors import ConfigError, TrackerError
 from omnidev.inputfile import loads_json, loads_toml, read_text
+from omnidev.mouse import DEFAULT_PREDICT, PREDICTIONS
 from omnidev.mouse.detect import (
     DetectParams,
     detect_landmarks,
@@ -84,8 +85,6 @@ from omnidev.mouse.geometry import (
 from omnidev.mouse.landmarks import LandmarkLayout
 from omnidev.mouse.track import LandmarkTracker
 
-PREDICTIONS = ("flow", "rotation", "similarity", "translation")
-
 
 class CameraMouse:
     """Detection, tracking with prediction, and the cursor (see the module docstring)."""
@@ -94,7 +93,7 @@ class CameraMouse:
         self,
         layout: LandmarkLayout,
         method: str = "homography",
-        predict: str = "flow",
+        predict: str = DEFAULT_PREDICT,
         redetect_every: int = 5,
         fov_deg: float = 60.0,
         *,
@@ -346,7 +345,7 @@ def open_tracker(options: Mapping[str, Any], calibration: Path | None) -> Camera
     return CameraMouse(
         load_layout(calibration),
         str(options.get("method", "homography")),
-        str(options.get("predict", "flow")),
+        str(options.get("predict", DEFAULT_PREDICT)),
         redetect,
         fov,
         lens=lens,
