@@ -610,11 +610,15 @@ def detect_landmarks(
                 # outer edge, between an overhanging card and the screen, stays out)
                 a, b = screen[i], screen[(i + 1) % 4]
                 step_px = max(2.0, params.border_band_frac * inset_mm[i] * px_per_mm)
-                stepped = [
-                    _border_step(image, a, b, k * step_px, params)
-                    for k in params.border_step_scales
-                ]
-                if params.min_border_step > 0 and not any(stepped):
+                # the nearest offset first: the faint map below votes only where it steps
+                near = stepped = True
+                if params.min_border_step > 0:
+                    scales = sorted(params.border_step_scales)
+                    near = bool(scales) and _border_step(image, a, b, scales[0] * step_px, params)
+                    stepped = near or any(
+                        _border_step(image, a, b, k * step_px, params) for k in scales[1:]
+                    )
+                if not stepped:
                     weak += 1  # no change of colour across the border: no vote
                     if weak > 4 - params.min_border_sides:
                         break
@@ -630,11 +634,7 @@ def detect_landmarks(
                 )
                 # the faint map only where the colour steps right at the border (on a
                 # textured wall its edges line up by chance: fixture three-landmarks)
-                if (
-                    e < params.min_edge_fraction * span
-                    and params.faint_canny is not None
-                    and (params.min_border_step <= 0 or stepped[0])
-                ):
+                if e < params.min_edge_fraction * span and params.faint_canny is not None and near:
                     if faint is None:
                         faint = edge_map(
                             image,
