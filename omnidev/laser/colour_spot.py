@@ -22,7 +22,11 @@ So a spot must be all of:
    the displayed content (static red text and icons, however bright, never fire),
    and the blob with the 2 px around it rose over the model by ``min_rise`` grey
    levels on average (a beam lifts its whole disc; noise crossing the clipping level
-   on a bright page does not);
+   on a bright page does not). Over content already within ``new_margin`` of
+   clipping in the laser channel (a bright page of the laser's colour) the laser
+   channel has no room to rise: there a clipped blob is new where the other
+   channels rose over the model by ``bright_rise`` (the laser's light leaking into
+   them), and ``min_rise`` asks that of them;
 5. **as bright as the camera goes**: its laser-channel peak within ``peak_margin``
    of the highest level the laser channel has shown on the screen so far (a beam
    drives its channel to the top; content just crossing ``saturated`` does not);
@@ -264,6 +268,12 @@ class ColourSpotDetector:
             highest level seen on the screen (255: off).
         beam_channels: channels the "beam" position fits: 3 (the laser channel and the
             two others, about one centre) or 1 (the laser channel alone).
+        bright_rise: with the model: over content whose laser channel was already within
+            ``new_margin`` of clipping (a bright page of the laser's colour, where the
+            spot cannot rise in its own channel), a clipped blob is new where the
+            strongest other channel rose over the model by this many grey levels on
+            ``min_new`` of it, and ``min_rise`` then asks its rise of the others. 0: off
+            (such a spot is never found).
     """
 
     def __init__(
@@ -300,6 +310,7 @@ class ColourSpotDetector:
         hold_spot: bool = True,
         peak_margin: int = 3,
         beam_channels: int = 3,
+        bright_rise: int = 10,
     ) -> None:
         if colour not in COLOURS:
             raise ValueError(f"colour must be one of {', '.join(COLOURS)}, got {colour!r}")
@@ -378,6 +389,9 @@ class ColourSpotDetector:
         if beam_channels not in (1, 3):
             raise ValueError(f"need beam_channels 1 or 3, got {beam_channels}")
         self.beam_channels = beam_channels
+        if not 0 <= bright_rise < 255:
+            raise ValueError(f"need bright_rise 0..254, got {bright_rise}")
+        self.bright_rise = bright_rise
         self._kernels: dict[int, NDArray[np.uint8]] = {}  # elliptic kernels by size
         self._top: dict[int, int] = {}  # laser channel -> highest level seen on the screen
         self._need = confirm  # frames the current track needs before it is reported
@@ -395,6 +409,9 @@ class ColourSpotDetector:
         self.refused = 0  # frames refused as ambiguous (for figures)
         self._planes: dict[int, NDArray[np.uint8]] = {}  # laser channels of the model
         self._low: dict[int, NDArray[np.uint8]] = {}  # where a clipped pixel would be new
+        # where the laser channel is near clipping but the others have room to rise
+        self._bright: dict[int, NDArray[np.uint8]] = {}
+        self._bright_n: dict[int, int] = {}  # pixels of each channel's _bright
         self._bg_lo = np.zeros((0, 0, 3), np.uint8)  # the model at the sampled pixels
         self._frame = 0
         self._mask8: NDArray[np.uint8] | None = None
@@ -473,11 +490,39 @@ class ColourSpotDetector:
             if self.peak_margin < 255:
                 top = int(cv2.minMaxLoc(lc, self._mask8)[1])
                 self._top[c] = max(self._top.get(c, 0), top)
-            clipped = cv2.threshold(lc, self.saturated - 1, 255, cv2.THRESH_BINARY)[1]
-            cands.append((c, cv2.bitwise_and(clipped, self._low[c])))
+            clipped = np.asarray(
+                cv2.threshold(lc, self.saturated - 1, 255, cv2.THRESH_BINARY)[1], np.uint8
+            )
+            cand = np.asarray(cv2.bitwise_and(clipped, self._low[c]), np.uint8)
+            if self.bright_rise > 0:
+                self._add_bright(image, bg, c, clipped, cand)
+            cands.append((c, cand))
         spot = self._best(image, cands, bg, near_only=False)
         self._update(image, spot)
         return spot
+
+    def _add_bright(
+        self,
+        image: NDArray[np.uint8],
+        bg: NDArray[np.uint8],
+        c: int,
+        clipped: NDArray[np.uint8],
+        cand: NDArray[np.uint8],
+    ) -> None:
+        """Add to ``cand`` the clipped pixels over content already near clipping in the
+        laser channel (a spot on a bright page of the laser's colour: its channel has no
+        room to rise) where the strongest other channel rose over the model by
+        ``bright_rise`` grey levels (the laser's light leaking into them)."""
+        if not self._bright_n[c]:
+            return
+        hi = cv2.bitwise_and(clipped, self._bright[c])
+        if not cv2.countNonZero(hi):
+            return
+        x, y, w, h = cv2.boundingRect(hi)
+        rows, cols = slice(y, y + h), slice(x, x + w)
+        up = cv2.subtract(self._others(image[rows, cols], c), self._others(bg[rows, cols], c))
+        rose = cv2.threshold(up, self.bright_rise - 1, 255, cv2.THRESH_BINARY)[1]
+        cand[rows, cols] = cv2.max(cand[rows, cols], cv2.bitwise_and(hi[rows, cols], rose))
 
     @staticmethod
     def _others(img: NDArray[np.uint8], c: int) -> NDArray[np.uint8]:
@@ -506,6 +551,10 @@ class ColourSpotDetector:
         self._planes = {c: np.ascontiguousarray(bg[:, :, c]) for c in self.channels}
         self._bg_lo = np.ascontiguousarray(_sample(bg, self.step))
         self._low = {c: self._low_of(p, slice(None), slice(None)) for c, p in self._planes.items()}
+        if self.bright_rise > 0:
+            every = (slice(None), slice(None))
+            self._bright = {c: self._bright_of(c, *every) for c in self.channels}
+            self._bright_n = {c: cv2.countNonZero(b) for c, b in self._bright.items()}
 
     def _low_of(self, plane: NDArray[np.uint8], rows: slice, cols: slice) -> NDArray[np.uint8]:
         """255 where the model's laser channel is clearly below clipping (a pixel that
@@ -521,12 +570,43 @@ class ColourSpotDetector:
         out: NDArray[np.uint8] = np.asarray(low, np.uint8)
         return out
 
+    def _bright_of(self, c: int, rows: slice, cols: slice) -> NDArray[np.uint8]:
+        """255 inside the screen where the model's laser channel ``c`` is near clipping
+        (not :meth:`_low_of`) and its other channels have ``bright_rise`` of room."""
+        assert self.background is not None
+        low = self._low[c][rows, cols]
+        near = cv2.threshold(
+            self._planes[c][rows, cols], self.saturated - self.new_margin - 1, 255, 0
+        )[1]
+        out = np.zeros(low.shape, np.uint8)
+        if not cv2.countNonZero(near):  # the common case: nothing near clipping
+            return out
+        x, y, w, h = cv2.boundingRect(near)
+        r = slice(y, y + h)
+        q = slice(x, x + w)
+        bg = self.background[rows, cols][r, q]
+        room = cv2.threshold(self._others(bg, c), 255 - self.bright_rise, 255, 1)[1]
+        part = cv2.bitwise_and(room, near[r, q])
+        if self._mask8 is not None:
+            part = cv2.bitwise_and(part, np.ascontiguousarray(self._mask8[rows, cols][r, q]))
+        out[r, q] = part
+        return out
+
+    def _set_bright(self, c: int, rows: slice, cols: slice) -> None:
+        """Refresh :attr:`_bright` of channel ``c`` in a region, and its pixel count."""
+        new = self._bright_of(c, rows, cols)
+        old = self._bright[c][rows, cols]
+        self._bright_n[c] += cv2.countNonZero(new) - cv2.countNonZero(old)
+        old[:] = new
+
     def _model_changed(self, rows: slice, cols: slice = slice(None)) -> None:
         bg = self.background
         assert bg is not None
         for c, plane in self._planes.items():
             plane[rows, cols] = bg[rows, cols, c]
             self._low[c][rows, cols] = self._low_of(plane, rows, cols)
+            if self.bright_rise > 0:
+                self._set_bright(c, rows, cols)
         k = self.step  # and the sampled model, on the sampled rows and columns in there
         h, w = bg.shape[:2]
         r0, r1, _ = rows.indices(h)
@@ -771,11 +851,14 @@ class ColourSpotDetector:
             g = self._ring_gain(win, sel, c)
             if g is None or g < self.busy_gain:
                 return None, ibox
+        bright = False  # over content near clipping in the laser channel
         if bg is not None:
             # new: enough of the blob was not clipped in the content model
             was = self._planes[c][v0:v1, u0:u1][sel]
             if np.count_nonzero(was < self.saturated - self.new_margin) < self.min_new * was.size:
-                return None, ibox
+                if self.bright_rise <= 0 or busy or not self._bright_new(win, bg, v0, u0, sel, c):
+                    return None, ibox
+                bright = True
         model = None if bg is None else self._model_window(bg, v0, v1, u0, u1)
         if model is not None and not (
             self._adds_light(win, model, sel) and self._cross_rise(win, model, sel, c)
@@ -783,7 +866,10 @@ class ColourSpotDetector:
             return None, ibox
         if model is not None and self.min_rise > 0:
             disc = cv2.dilate(sel.view(np.uint8), self._k5).view(bool)
-            up = win[:, :, c][disc].astype(np.int16) - model[:, :, c][disc]
+            if bright:  # the laser channel had no room: its light in the others
+                up = cv2.subtract(self._others(win, c), self._others(model, c))[disc]
+            else:
+                up = win[:, :, c][disc].astype(np.int16) - model[:, :, c][disc]
             if float(up.mean()) < self.min_rise:
                 return None, ibox
         gain = self._colour(win, None if bg is None or busy else bg[v0:v1, u0:u1], sel, c)
@@ -814,6 +900,22 @@ class ColourSpotDetector:
             "red" if c == 2 else "green",
         )
         return spot, ibox
+
+    def _bright_new(
+        self,
+        win: NDArray[np.uint8],
+        bg: NDArray[np.uint8],
+        v0: int,
+        u0: int,
+        sel: NDArray[np.bool_],
+        c: int,
+    ) -> bool:
+        """New over content near clipping: the strongest other channel rose over the
+        model by ``bright_rise`` on at least ``min_new`` of the blob."""
+        h, w = sel.shape
+        ref = bg[v0 : v0 + h, u0 : u0 + w]
+        up = cv2.subtract(self._others(win, c), self._others(ref, c))[sel]
+        return bool(np.count_nonzero(up >= self.bright_rise) >= self.min_new * up.size)
 
     def _model_window(
         self, bg: NDArray[np.uint8], v0: int, v1: int, u0: int, u1: int

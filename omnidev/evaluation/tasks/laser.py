@@ -38,7 +38,7 @@ keyword options as ``--opt KEY=VALUE`` for the ``colour`` method's tuning
 (``saturated``, ``halo``, ``colour_ratio``, ``track_px``, ``busy_gain``,
 ``max_darker``, ``min_cross``, ``busy_events``, ``position``, ``new_margin``,
 ``confirm``, ``busy_confirm``, ``min_rise``, ``fringe_ratio``, ``hold_spot`` (0 or 1),
-``peak_margin``, ``beam_channels``), and
+``peak_margin``, ``beam_channels``, ``bright_rise``), and
 ``cache`` (a directory: rendered frames are kept there, as ``.npy`` and ``.json``
 files, and reused, so methods compared on the same scenes are rendered once; the
 frames depend only on the seed and ``frames``).
@@ -79,7 +79,7 @@ FILTERS: dict[str, tuple[float, float, float, float | None]] = {
 _DETECTOR_OPTIONS = (
     "saturated", "halo", "colour_ratio", "track_px", "busy_gain", "max_darker", "min_cross",
     "busy_events", "position", "new_margin", "confirm", "busy_confirm", "min_rise",
-    "fringe_ratio", "hold_spot", "peak_margin", "beam_channels",
+    "fringe_ratio", "hold_spot", "peak_margin", "beam_channels", "bright_rise",
 )  # fmt: skip
 _COUNTS = (
     "spot", "hit", "far", "missed", "off", "false", "hidden", "refused", "delivered",
@@ -391,6 +391,7 @@ TASK = Task(
         "hold_spot": -1,
         "peak_margin": -1,
         "beam_channels": -1,
+        "bright_rise": -1,
         "position": "",
         "cache": "",
     },
