@@ -164,6 +164,27 @@ def test_hold_spot_keeps_a_spot_out_of_the_model() -> None:
     assert not any(found[False][3:])  # measured: none
 
 
+def _scene_errors(seed: int, **options: object) -> tuple[list[float | None], int]:
+    """Per spot frame of randomized laser scene ``seed`` (30 frames), the error in
+    screen px of a 1920x1080 screen (None: no spot), and the false spots."""
+    sc = LaserScene(seed, frames=30)
+    k = ref_scale(sc.scene)
+    det = ColourSpotDetector(sc.laser.colour, screen_mask(sc.scene), **options)  # type: ignore[arg-type]
+    errors: list[float | None] = []
+    false = 0
+    for img, t in sc.frames():
+        s = det.detect(img)
+        if not t.on:
+            false += s is not None
+        elif t.visible and t.xy is not None:
+            if s is None:
+                errors.append(None)
+                continue
+            xy = sc.scene.image_to_screen(np.array([[s.u, s.v]]))[0]
+            errors.append(float(np.hypot(*((xy - np.asarray(t.xy)) * k))) / t.tol_px)
+    return errors, false
+
+
 def test_spot_on_a_page_of_its_own_colour() -> None:
     """Randomized scene 1020 (tuning range; 320x240, H.264, a green laser on a green
     page whose green channel the camera shows at 228-235, a video window): the spot
@@ -172,27 +193,28 @@ def test_spot_on_a_page_of_its_own_colour() -> None:
     channels' rise (40-80 grey levels: the laser's light leaking into them) makes it
     new. Measured: 21 of 21 spot frames within tolerance against 0, and no false
     spot on its spot-off frames either way."""
-    sc = LaserScene(1020, frames=30)
-    frames = list(sc.frames())
-    k = ref_scale(sc.scene)
     figures = {}
     for bright in (0, 10):
-        det = ColourSpotDetector(sc.laser.colour, screen_mask(sc.scene), bright_rise=bright)
-        hit = false = spot = 0
-        for img, t in frames:
-            s = det.detect(img)
-            if not t.on:
-                false += s is not None
-            elif t.visible and t.xy is not None:
-                spot += 1
-                if s is not None:
-                    xy = sc.scene.image_to_screen(np.array([[s.u, s.v]]))[0]
-                    hit += float(np.hypot(*((xy - np.asarray(t.xy)) * k))) <= t.tol_px
-        figures[bright] = (hit, spot, false)
+        errors, false = _scene_errors(1020, bright_rise=bright)
+        hit = sum(e is not None and e <= 1.0 for e in errors)
+        figures[bright] = (hit, len(errors), false)
     assert figures[0] == (0, 21, 0)
     assert figures[10][1:] == (21, 0) and figures[10][0] >= 19
     with pytest.raises(ValueError, match="bright_rise 0..254"):
         ColourSpotDetector("green", bright_rise=255)
+
+
+def test_a_new_spot_is_not_taken_into_the_model() -> None:
+    """Randomized scene 1046 (tuning range; 320x240, MPEG-4, a green white-core spot on
+    a dark slide): on the frame the spot appears, the codec's chroma bleed darkens the
+    red and blue channels around it, and the model's fix for darker content used to
+    take the spot's left half in with them before the frame was searched; the spot was
+    then placed from its right half, 1.3-1.7 image px off (frames 15-18: 10.8-23.5
+    screen px against a tolerance of 6.7). Searched first, every spot frame is within
+    tolerance (measured: 17 of 17, the largest error 0.94 of the tolerance)."""
+    errors, false = _scene_errors(1046)
+    assert len(errors) == 17 and false == 0
+    assert all(e is not None and e <= 1.0 for e in errors), errors
 
 
 def test_static_content_never_fires() -> None:

@@ -23,7 +23,7 @@ from tests.laser_colour_reference import ColourSpotDetector as Reference
 # the fast path with the options that did not exist in the reference at their "off"
 # values, and its defaults where they changed (the speed work changed no result;
 # busy_confirm, min_rise, fringe_ratio, hold_spot, peak_margin, position "beam",
-# new_margin 20 and bright_rise came after it)
+# new_margin 20, bright_rise and search_first came after it)
 AS_REFERENCE: dict[str, object] = {
     "busy_confirm": 1,
     "peak_margin": 255,
@@ -33,6 +33,7 @@ AS_REFERENCE: dict[str, object] = {
     "hold_spot": False,
     "position": "centroid",
     "bright_rise": 0,
+    "search_first": False,
 }
 
 

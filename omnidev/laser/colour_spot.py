@@ -35,9 +35,13 @@ So a spot must be all of:
 The content model is the camera image itself, refreshed one row band of ``bands``
 per frame, except where the laser channel newly clipped (a spot never enters it);
 where the frame is darker than the model by ``rise`` (a laser only adds light) the
-model is out of date and takes the frame at once, except (``hold_spot``) the pixels
-of the last spot's window where the laser channel rose (content changing beside a
-spot would otherwise copy the spot into the model, and it would be lost).
+model is out of date and takes the frame once the frame has been searched, except
+(``hold_spot``) the pixels of this and the last spot's window where the laser channel
+rose (content changing beside a spot would otherwise copy the spot into the model,
+and it would be lost). The search comes first because a codec's chroma bleed darkens
+the other channels around a spot that has just appeared, and the fix's reach (the
+sampled pixels' neighbourhood) would take part of the spot into the model: it was then
+placed from the rest of it, up to 1 image px off (tuning scenes 1021, 1078).
 
 Where the model cannot tell static from new, a blob is taken only within
 ``track_px`` of the previous frame's spot:
@@ -274,6 +278,8 @@ class ColourSpotDetector:
             strongest other channel rose over the model by this many grey levels on
             ``min_new`` of it, and ``min_rise`` then asks its rise of the others. 0: off
             (such a spot is never found).
+        search_first: the frame is searched before the model takes its darker pixels
+            (module docstring); False: after, as before 2026-12-06.
     """
 
     def __init__(
@@ -311,6 +317,7 @@ class ColourSpotDetector:
         peak_margin: int = 3,
         beam_channels: int = 3,
         bright_rise: int = 10,
+        search_first: bool = True,
     ) -> None:
         if colour not in COLOURS:
             raise ValueError(f"colour must be one of {', '.join(COLOURS)}, got {colour!r}")
@@ -392,6 +399,7 @@ class ColourSpotDetector:
         if not 0 <= bright_rise < 255:
             raise ValueError(f"need bright_rise 0..254, got {bright_rise}")
         self.bright_rise = bright_rise
+        self.search_first = search_first
         self._kernels: dict[int, NDArray[np.uint8]] = {}  # elliptic kernels by size
         self._top: dict[int, int] = {}  # laser channel -> highest level seen on the screen
         self._need = confirm  # frames the current track needs before it is reported
@@ -420,7 +428,8 @@ class ColourSpotDetector:
         self._busy = np.zeros((0, 0), np.int32)  # per block: frame until which it is busy
         self._history = np.zeros((0, 0), np.uint16)  # per block: frames with darker content
         self._last: LaserSpot | None = None
-        # the model before this frame's darker pixels replaced it: (row, col, values)
+        # with ``search_first`` off, the model before this frame's darker pixels replaced
+        # it: (row, col, values)
         self._prefix: tuple[int, int, NDArray[np.uint8]] | None = None
 
     def reset(self) -> None:
@@ -483,7 +492,8 @@ class ColourSpotDetector:
             return self._restart(image)
         self._mark_busy(dec_any)
         self._prefix = None
-        self._fix_darker(image, dec_any)
+        if not self.search_first:
+            self._fix_darker(image, dec_any)
         cands = []
         for c in self.channels:
             lc = np.asarray(cv2.extractChannel(image, c), np.uint8)
@@ -498,6 +508,11 @@ class ColourSpotDetector:
                 self._add_bright(image, bg, c, clipped, cand)
             cands.append((c, cand))
         spot = self._best(image, cands, bg, near_only=False)
+        # after the search, so that a spot is judged against the model as it was (a
+        # codec's chroma bleed darkens the other channels around a new spot, and the
+        # fix's reach would take half the spot into the model), and its window is held
+        if self.search_first:
+            self._fix_darker(image, dec_any, spot)
         self._update(image, spot)
         return spot
 
@@ -645,7 +660,9 @@ class ColourSpotDetector:
         c = min(bw - 1, max(0, int(u) // _BLOCK))
         return bool(self._busy[r, c] >= self._frame)
 
-    def _fix_darker(self, image: NDArray[np.uint8], dec: NDArray[np.uint8]) -> None:
+    def _fix_darker(
+        self, image: NDArray[np.uint8], dec: NDArray[np.uint8], spot: LaserSpot | None = None
+    ) -> None:
         """Where the frame is darker than the model by ``rise`` the model is out of date
         (content changed, or it held a spot): those pixels take the frame's values."""
         bg = self.background
@@ -662,16 +679,19 @@ class ColourSpotDetector:
         full = cv2.resize(sub, None, fx=k, fy=k, interpolation=cv2.INTER_NEAREST)
         full = np.ascontiguousarray(full[: r1 - r0, : c1 - c0])
         grown = cv2.dilate(full, self._kgrow)
-        if self.hold_spot and self._last is not None:
-            # the last spot's window never takes pixels where the laser channel rose:
-            # content changing next to a spot would copy the spot into the model
-            v0, v1, u0, u1 = self._window(self._last.u, self._last.v, h, w)
+        for held in (self._last, spot):
+            if not self.hold_spot or held is None:
+                continue
+            # this and the last spot's window never take pixels where the laser channel
+            # rose: content changing next to a spot would copy the spot into the model
+            v0, v1, u0, u1 = self._window(held.u, held.v, h, w)
             a0, a1, b0, b1 = max(v0, r0), min(v1, r1), max(u0, c0), min(u1, c1)
             if a0 < a1 and b0 < b1:
                 for c in self.channels:
                     up = cv2.subtract(image[a0:a1, b0:b1, c], bg[a0:a1, b0:b1, c])
                     grown[a0 - r0 : a1 - r0, b0 - c0 : b1 - c0][up >= self.rise] = 0
-        self._prefix = (r0, c0, bg[r0:r1, c0:c1].copy())
+        if not self.search_first:
+            self._prefix = (r0, c0, bg[r0:r1, c0:c1].copy())
         cv2.copyTo(image[r0:r1, c0:c1], grown, bg[r0:r1, c0:c1])
         self._model_changed(slice(r0, r1), slice(c0, c1))
 
@@ -921,7 +941,7 @@ class ColourSpotDetector:
         self, bg: NDArray[np.uint8], v0: int, v1: int, u0: int, u1: int
     ) -> NDArray[np.uint8]:
         """The content model in a window as it was before this frame's darker pixels
-        replaced it."""
+        replaced it (they replace it before the search only with ``search_first`` off)."""
         out = bg[v0:v1, u0:u1]
         if self._prefix is None:
             return out

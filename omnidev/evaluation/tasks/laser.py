@@ -38,7 +38,7 @@ keyword options as ``--opt KEY=VALUE`` for the ``colour`` method's tuning
 (``saturated``, ``halo``, ``colour_ratio``, ``track_px``, ``busy_gain``,
 ``max_darker``, ``min_cross``, ``busy_events``, ``position``, ``new_margin``,
 ``confirm``, ``busy_confirm``, ``min_rise``, ``fringe_ratio``, ``hold_spot`` (0 or 1),
-``peak_margin``, ``beam_channels``, ``bright_rise``), and
+``peak_margin``, ``beam_channels``, ``bright_rise``, ``search_first`` (0 or 1)), and
 ``cache`` (a directory: rendered frames are kept there, as ``.npy`` and ``.json``
 files, and reused, so methods compared on the same scenes are rendered once; the
 frames depend only on the seed and ``frames``).
@@ -80,6 +80,7 @@ _DETECTOR_OPTIONS = (
     "saturated", "halo", "colour_ratio", "track_px", "busy_gain", "max_darker", "min_cross",
     "busy_events", "position", "new_margin", "confirm", "busy_confirm", "min_rise",
     "fringe_ratio", "hold_spot", "peak_margin", "beam_channels", "bright_rise",
+    "search_first",
 )  # fmt: skip
 _COUNTS = (
     "spot", "hit", "far", "missed", "off", "false", "hidden", "refused", "delivered",
@@ -97,8 +98,9 @@ def make_detector(
             for k in _DETECTOR_OPTIONS
             if options.get(k) is not None and options[k] not in (-1, "")
         }
-        if "hold_spot" in kw:
-            kw["hold_spot"] = bool(kw["hold_spot"])
+        for flag in ("hold_spot", "search_first"):
+            if flag in kw:
+                kw[flag] = bool(kw[flag])
         return ColourSpotDetector(colour, mask, **kw)
     if method == "white-core":
         return SpotDetector(colour, mask)
@@ -113,8 +115,9 @@ def check_options(options: Mapping[str, Any]) -> None:
         make_detector(method, "red", np.ones((8, 8), bool), options)
     except ValueError as exc:
         raise OmnidevError(f"task laser: detector options: {exc}") from None
-    if options.get("hold_spot", -1) not in (-1, 0, 1):
-        raise OmnidevError(f"task laser: option hold_spot={options['hold_spot']} must be 0 or 1")
+    for flag in ("hold_spot", "search_first"):
+        if options.get(flag, -1) not in (-1, 0, 1):
+            raise OmnidevError(f"task laser: option {flag}={options[flag]} must be 0 or 1")
     frames = int(options.get("frames", 75))
     w, h = max(RESOLUTIONS, key=lambda s: s[0] * s[1])
     check_memory(
@@ -392,6 +395,7 @@ TASK = Task(
         "peak_margin": -1,
         "beam_channels": -1,
         "bright_rise": -1,
+        "search_first": -1,
         "position": "",
         "cache": "",
     },

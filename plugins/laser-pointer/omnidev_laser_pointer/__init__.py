@@ -48,7 +48,7 @@ METHOD_OPTIONS: dict[str, dict[str, type]] = {
         "max_darker": float, "min_cross": float, "busy_events": int, "position": str,
         "new_margin": int, "confirm": int, "busy_confirm": int, "min_rise": float,
         "fringe_ratio": float, "hold_spot": bool, "peak_margin": int, "beam_channels": int,
-        "bright_rise": int,
+        "bright_rise": int, "search_first": bool,
     },
     "white-core": {
         "step": int, "rise": int, "core": int, "saturated": int, "min_area": int,
