@@ -25,11 +25,12 @@ give the same centers.
 Missing landmarks (sec. 6.2.5): with one or two missing, the dissertation
 predicts each by adding the displacement of the found landmarks since the last
 frame (their mean) to its last position (``predict="translation"``). Beyond
-it, and the default, ``predict="similarity"`` carries the missing ones with
-the rotation, scale and shift the found ones underwent (exact for motion
-parallel to the screen; the translation drifts as soon as the hand turns or
-moves closer). With three or four missing the frame is a failure and the
-caller holds the last cursor.
+it, ``predict="similarity"`` carries the missing ones with the rotation, scale
+and shift the found ones underwent (exact for motion parallel to the screen;
+the translation drifts as soon as the hand turns or moves closer); the default,
+``predict="flow"`` (:data:`omnidev.mouse.DEFAULT_PREDICT`, as the plugin and
+the CLI), follows the monitor plane's image motion. With three or four missing
+the frame is a failure and the caller holds the last cursor.
 
 Coordinates: image pixels, x right, y down, origin at the top-left pixel's center.
 """
@@ -46,6 +47,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from omnidev.mouse import DEFAULT_PREDICT
 from omnidev.mouse.flow import PlaneFlow, apply_h, frame_homography
 
 BARS = 8
@@ -620,7 +622,7 @@ class LandmarkTracker:
     n: int = 6
     min_contrast: float = 25.0
     relative_contrast: float = 0.6
-    predict: str = "similarity"
+    predict: str = DEFAULT_PREDICT
     motion: bool = True
     consistency: bool = True
     back_tol: float = 2.0
