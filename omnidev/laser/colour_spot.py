@@ -589,11 +589,9 @@ class ColourSpotDetector:
         """255 inside the screen where the model's laser channel ``c`` is near clipping
         (not :meth:`_low_of`) and its other channels have ``bright_rise`` of room."""
         assert self.background is not None
-        low = self._low[c][rows, cols]
-        near = cv2.threshold(
-            self._planes[c][rows, cols], self.saturated - self.new_margin - 1, 255, 0
-        )[1]
-        out = np.zeros(low.shape, np.uint8)
+        plane = self._planes[c][rows, cols]
+        near = cv2.threshold(plane, self.saturated - self.new_margin - 1, 255, 0)[1]
+        out = np.zeros(plane.shape, np.uint8)
         if not cv2.countNonZero(near):  # the common case: nothing near clipping
             return out
         x, y, w, h = cv2.boundingRect(near)
