@@ -165,8 +165,9 @@ def test_hold_spot_keeps_a_spot_out_of_the_model() -> None:
 
 
 def _scene_errors(seed: int, **options: object) -> tuple[list[float | None], int]:
-    """Per spot frame of randomized laser scene ``seed`` (30 frames), the error in
-    screen px of a 1920x1080 screen (None: no spot), and the false spots."""
+    """Per spot frame of randomized laser scene ``seed`` (30 frames), the error (screen
+    px of a 1920x1080 screen) as a fraction of the frame's tolerance (None: no spot),
+    and the number of false spots."""
     sc = LaserScene(seed, frames=30)
     k = ref_scale(sc.scene)
     det = ColourSpotDetector(sc.laser.colour, screen_mask(sc.scene), **options)  # type: ignore[arg-type]

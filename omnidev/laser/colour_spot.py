@@ -874,7 +874,11 @@ class ColourSpotDetector:
             # new: enough of the blob was not clipped in the content model
             was = self._planes[c][v0:v1, u0:u1][sel]
             if np.count_nonzero(was < self.saturated - self.new_margin) < self.min_new * was.size:
-                if self.bright_rise <= 0 or busy or not self._bright_new(win, bg, v0, u0, sel, c):
+                if (
+                    self.bright_rise <= 0
+                    or busy
+                    or not self._bright_new(win, bg[v0:v1, u0:u1], sel, c)
+                ):
                     return None, ibox
                 bright = True
         model = None if bg is None else self._model_window(bg, v0, v1, u0, u1)
@@ -920,18 +924,11 @@ class ColourSpotDetector:
         return spot, ibox
 
     def _bright_new(
-        self,
-        win: NDArray[np.uint8],
-        bg: NDArray[np.uint8],
-        v0: int,
-        u0: int,
-        sel: NDArray[np.bool_],
-        c: int,
+        self, win: NDArray[np.uint8], ref: NDArray[np.uint8], sel: NDArray[np.bool_], c: int
     ) -> bool:
         """New over content near clipping: the strongest other channel rose over the
-        model by ``bright_rise`` on at least ``min_new`` of the blob."""
-        h, w = sel.shape
-        ref = bg[v0 : v0 + h, u0 : u0 + w]
+        model ``ref`` (the same window) by ``bright_rise`` on at least ``min_new`` of the
+        blob."""
         up = cv2.subtract(self._others(win, c), self._others(ref, c))[sel]
         return bool(np.count_nonzero(up >= self.bright_rise) >= self.min_new * up.size)
 
