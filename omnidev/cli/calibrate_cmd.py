@@ -507,7 +507,13 @@ def run_screen(args: argparse.Namespace) -> int:
     print(
         "screen border polygon P0..P7 (image px): " + " ".join(f"({x:.1f},{y:.1f})" for x, y in v)
     )
-    print(f"dots used: {calib.dots_used} of {layout.count}; method {method}")
+    form = getattr(calib.transform, "form", None)
+    lens = (
+        ""
+        if form is None
+        else f" (lens: {'forward distortion' if form == 'brown' else 'polynomial undistortion'})"
+    )
+    print(f"dots used: {calib.dots_used} of {layout.count}; method {method}{lens}")
     if truth is not None:
         _compare(args, features, size, truth)
     elif args.plot is not None:

@@ -54,7 +54,14 @@ from omnidev.screencal.features import (
 )
 from omnidev.screencal.grid import LandmarkGrid, landmark_grid
 from omnidev.screencal.patterns import DotGrid, dot_grid
-from omnidev.screencal.transform import CellMap, HomographyMap, ImageToScreen, RadialMap, invert
+from omnidev.screencal.transform import (
+    LENS_FORMS,
+    CellMap,
+    HomographyMap,
+    ImageToScreen,
+    RadialMap,
+    invert,
+)
 from omnidev.screencal.tsai import TsaiMap
 
 FloatArray = NDArray[np.float64]
@@ -63,6 +70,10 @@ FORMAT_VERSION = 2  # 2: dot layout (rows, cols, margins, radius); version 1 sti
 BORDERS = ("region", "tdm")
 METHODS = ("radial", "bilinear", "idw", "homography", "tsai")
 DEFAULT_METHOD = "radial"
+# the radial model's lens form: the lens's forward (Brown) distortion and the polynomial
+# undistortion both fitted, the smaller residual kept; the polynomial alone cannot follow
+# a strong barrel lens to the screen's corners (issue 12, held-out 59020, 59135: 3-4 px)
+DEFAULT_LENS_FORM = "auto"
 EDGE_TOLERANCE_PX = 1.0  # screen px beyond the screen's edge still mapped (not NaN)
 CORNER_TOLERANCE = 0.02  # of the screen's width: the border's corners against the dots
 EDGE_ENDS = 0.03  # fraction of each side's length, at both ends, with no edge profile
@@ -527,26 +538,39 @@ class ScreenCalibration:
         write_storage(Path(path), KIND, FORMAT_VERSION, nodes, force=force)
 
 
-def fit_calibration(features: ScreenFeatures, method: str = DEFAULT_METHOD) -> ScreenCalibration:
-    """Fit the image -> screen ``method`` to measured features."""
+def fit_calibration(
+    features: ScreenFeatures, method: str = DEFAULT_METHOD, *, lens_form: str = DEFAULT_LENS_FORM
+) -> ScreenCalibration:
+    """Fit the image -> screen ``method`` to measured features; ``lens_form``: how the
+    radial model (``radial``, and the dots it fills in for the cell methods) undoes the
+    lens (:data:`omnidev.screencal.transform.LENS_FORMS`, or ``auto``: both fitted, the
+    one with the smaller residual kept)."""
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
+    if lens_form not in (*LENS_FORMS, "auto"):
+        raise CalibrationError(
+            f"unknown lens form {lens_form!r}; choose from {', '.join(LENS_FORMS)}, auto"
+        )
     det = features.dots
     rows, cols = det.shape
     found = det.found
     uv, xy = det.centers[found], features.screen_dots[found]
-    radial = RadialMap.fit(
-        uv,
-        xy,
-        features.image_size,
-        features.lattice,
-        (rows, cols),
-        found,
-        edges=features.edge_constraints(),
-    )
+
+    def radial() -> RadialMap:
+        return RadialMap.fit(
+            uv,
+            xy,
+            features.image_size,
+            features.lattice,
+            (rows, cols),
+            found,
+            edges=features.edge_constraints(),
+            form=lens_form,
+        )
+
     transform: ImageToScreen
     if method == "radial":
-        transform = radial
+        transform = radial()
     elif method == "homography":
         transform = HomographyMap.fit(uv, xy)
     elif method == "tsai":
@@ -557,7 +581,7 @@ def fit_calibration(features: ScreenFeatures, method: str = DEFAULT_METHOD) -> S
             miss = ~found
             guess = HomographyMap(np.asarray(np.linalg.inv(HomographyMap.fit(uv, xy).hmat)))
             dots_img[miss] = invert(
-                radial, features.screen_dots[miss], guess(features.screen_dots[miss])
+                radial(), features.screen_dots[miss], guess(features.screen_dots[miss])
             )
         grid = landmark_grid(
             dots_img.reshape(rows, cols, 2),
@@ -672,7 +696,12 @@ def load_screen_calibration(path: Path) -> ScreenCalibration:
             keys = ("radial_params", "radial_scale", "residual", "lattice")
             params = {k: read_mat(fs, path, k) for k in keys}
             params["residual_shape"] = np.array([rows, cols], np.float64)
-            transform = RadialMap.from_params(params)
+            if not fs.getNode("radial_form").empty():  # absent before 2026-12-06: poly
+                params["radial_form"] = read_mat(fs, path, "radial_form")
+            try:
+                transform = RadialMap.from_params(params)
+            except ValueError as exc:
+                raise CalibrationError(f"{path}: key {exc}") from None
         elif method == "homography":
             transform = HomographyMap(read_mat(fs, path, "H").astype(np.float64))
         elif method == "tsai":

@@ -14,7 +14,9 @@ defined. Methods:
   the dots.
 - ``radial``: a lens model fitted to all dots by least squares - undistortion
   ``p_u = c + (p - c)(1 + k1 r^2 + k2 r^4 + k3 r^6)`` (r normalised by the image
-  half-diagonal, centre c free) followed by a homography, the screen's edges held
+  half-diagonal, centre c free), or the lens's forward distortion of that form inverted
+  (:data:`LENS_FORMS`; both fitted and the smaller residual kept by default), followed
+  by a homography, the screen's edges held
   beyond the outer dots - plus a correction interpolated bilinearly from its
   residuals at the dots (screen lattice) where those residuals form a smooth field
   rather than detection noise.
@@ -247,13 +249,45 @@ def residual_predictability(field: FloatArray, found: NDArray[np.bool_]) -> floa
     return err / max(float(np.sum(field[use] ** 2)), 1e-300)
 
 
-def _radial_apply(p: FloatArray, pts: FloatArray, scale: float) -> FloatArray:
+LENS_FORMS = ("poly", "brown")
+"""How the radial model undoes the lens: ``poly``, a polynomial in the distorted radius
+(``p_u = c + (p - c)(1 + k1 r^2 + k2 r^4 + k3 r^6)``); ``brown``, the lens's forward
+distortion ``r_d = r_u (1 + k1 r_u^2 + k2 r_u^4 + k3 r_u^6)`` (Brown-Conrady, OpenCV's
+radial terms) inverted by Newton's method."""
+_NEWTON_STEPS = 12
+
+
+def _undistort_brown(r_d: FloatArray, k1: float, k2: float, k3: float) -> FloatArray:
+    """``r_u`` with ``r_u (1 + k1 r_u^2 + k2 r_u^4 + k3 r_u^6) = r_d`` (normalised radii),
+    by Newton's method from ``r_d / (1 + k1 r_d^2 + ...)``, kept within ``r_d / 4 .. 4
+    r_d`` (a lens moves a point by less than that); where the forward map turns back (a
+    barrel lens beyond its widest point) the step is held, so the result stays finite
+    for any k."""
+    lo, hi = 0.25 * r_d, 4.0 * r_d
+    r2 = r_d * r_d
+    r = np.clip(r_d / np.maximum(1 + r2 * (k1 + r2 * (k2 + r2 * k3)), 0.1), lo, hi)
+    for _ in range(_NEWTON_STEPS):
+        r2 = r * r
+        f = r * (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) - r_d
+        if not np.any(np.abs(f) > 1e-13):
+            break
+        df = 1 + r2 * (3 * k1 + r2 * (5 * k2 + r2 * 7 * k3))
+        r = np.clip(r - f / np.maximum(df, 0.1), lo, hi)
+    return r
+
+
+def _radial_apply(p: FloatArray, pts: FloatArray, scale: float, form: str = "poly") -> FloatArray:
     """Image px -> screen px of the radial model with parameter vector ``p``:
-    [cx, cy, k1, k2, k3, h11, h12, h13, h21, h22, h23, h31, h32] (h33 = 1)."""
+    [cx, cy, k1, k2, k3, h11, h12, h13, h21, h22, h23, h31, h32] (h33 = 1); ``form``
+    (:data:`LENS_FORMS`): what k1-k3 describe."""
     x = (pts[:, 0] - p[0]) / scale
     y = (pts[:, 1] - p[1]) / scale
     r2 = x * x + y * y
-    f = 1 + r2 * (p[2] + r2 * (p[3] + r2 * p[4]))
+    if form == "brown":
+        r_d = np.sqrt(r2)
+        f = _undistort_brown(r_d, p[2], p[3], p[4]) / np.maximum(r_d, 1e-12)
+    else:
+        f = 1 + r2 * (p[2] + r2 * (p[3] + r2 * p[4]))
     x, y = x * f, y * f
     den = p[11] * x + p[12] * y + 1.0
     out = np.empty((len(pts), 2))
@@ -274,7 +308,11 @@ class RadialMap:
         scale: float,
         residual: FloatArray,
         lattice: FloatArray,
+        form: str = "poly",
     ) -> None:
+        if form not in LENS_FORMS:
+            raise ValueError(f"lens form {form!r}: one of {', '.join(LENS_FORMS)}")
+        self.form = form
         self.p = np.asarray(p, np.float64)
         self.scale = float(scale)
         self.residual = np.asarray(residual, np.float64)  # (rows, cols, 2) screen px
@@ -297,6 +335,7 @@ class RadialMap:
         edge_tie: float = 0.15,
         edge_scatter: bool = True,
         terms: int | None = None,
+        form: str = "poly",
     ) -> RadialMap:
         """Fit to the found dots ``uv`` (M, 2 image px) with screen ``xy`` (M, 2); ``n``:
         the lattice's dots per side, or (rows, cols); ``found`` (rows*cols,).
@@ -347,41 +386,53 @@ class RadialMap:
         # like a measurement of that quality
         tie_unit = DOT_NOISE_PX * sx / max(float(np.ptp(uv[:, 0])), 1e-9)
 
-        def resid(p: FloatArray, k: int) -> FloatArray:
+        if terms is None:
+            terms = 3 if found.all() else 2  # a partial grid: fewer terms extrapolate better
+        if terms not in (1, 2, 3):
+            raise ValueError(f"terms {terms!r}: 1, 2 or 3")
+        if form not in (*LENS_FORMS, "auto"):
+            raise ValueError(f"form {form!r}: one of {', '.join(LENS_FORMS)} or 'auto'")
+
+        def resid(p: FloatArray, k: int, lens: str, wts: FloatArray) -> FloatArray:
             pp = p[:13].copy()
             pp[2 + k : 5] = 0.0
-            parts = [(_radial_apply(pp, uv, scale) - xy).ravel()]
+            parts = [(_radial_apply(pp, uv, scale, lens) - xy).ravel()]
             for i, (e, axis, value) in enumerate(edge_sets):  # edge points land on their edge
                 delta = p[13 + min(i, n_off - 1)]  # shifted along the normal (image px)
                 pts = e[:, :2] + delta * e[:, 2:]
-                parts.append(weights[i] * (_radial_apply(pp, pts, scale)[:, axis] - value))
+                parts.append(wts[i] * (_radial_apply(pp, pts, scale, lens)[:, axis] - value))
             if n_off > 1 and edge_tie > 0:  # the sides' offsets differ by ~edge_tie
                 d = p[13 : 13 + n_off]
                 parts.append((d - d.mean()) * (tie_unit / edge_tie))
             return np.concatenate(parts) / sx
 
-        p = np.append(p0, np.zeros(n_off))  # then the edges' offsets along their normals
-        if terms is None:
-            terms = 3 if found.all() else 2  # a partial grid: fewer terms extrapolate better
-        if terms not in (1, 2, 3):
-            raise ValueError(f"terms {terms!r}: 1, 2 or 3")
-        for k in range(1, terms + 1):  # grow the radial series: stabler than all at once
-            p = levenberg_marquardt(partial(resid, k=k), p)
-            p[2 + k : 5] = 0.0
-        if edge_scatter and edge_sets:  # a side scattering more than the dots weighs less
-            r = resid(p, terms) * sx
-            at = 2 * len(uv)
-            dot_power = float(np.mean(r[:at] ** 2))
-            for i, (e, _, _) in enumerate(edge_sets):
-                side_power = float(np.mean((r[at : at + len(e)] / weights[i]) ** 2))
-                at += len(e)
-                weights[i] = math.sqrt(min(edge_weight, dot_power / max(side_power, 1e-300)))
-            p = levenberg_marquardt(partial(resid, k=terms), p)
-        p = p[:13]
-        model = cls(p, scale, np.zeros((rows, cols, 2)), lattice)
+        def solve(lens: str) -> tuple[FloatArray, float]:
+            """The parameters under lens form ``lens`` and their cost at the first
+            weights (comparable across forms)."""
+            wts = weights.copy()
+            p = np.append(p0, np.zeros(n_off))  # then the edges' offsets along their normals
+            for k in range(1, terms + 1):  # grow the radial series: stabler than all at once
+                p = levenberg_marquardt(partial(resid, k=k, lens=lens, wts=wts), p)
+                p[2 + k : 5] = 0.0
+            if edge_scatter and edge_sets:  # a side scattering more than the dots weighs less
+                r = resid(p, terms, lens, wts) * sx
+                at = 2 * len(uv)
+                dot_power = float(np.mean(r[:at] ** 2))
+                for i, (e, _, _) in enumerate(edge_sets):
+                    side_power = float(np.mean((r[at : at + len(e)] / wts[i]) ** 2))
+                    at += len(e)
+                    wts[i] = math.sqrt(min(edge_weight, dot_power / max(side_power, 1e-300)))
+                p = levenberg_marquardt(partial(resid, k=terms, lens=lens, wts=wts), p)
+            r = resid(p, terms, lens, weights)
+            return p, float(r @ r)
+
+        fits = {lens: solve(lens) for lens in (LENS_FORMS if form == "auto" else (form,))}
+        form = min(fits, key=lambda lens: fits[lens][1])
+        p = fits[form][0][:13]
+        model = cls(p, scale, np.zeros((rows, cols, 2)), lattice, form)
         if correct:
             res = np.zeros((rows * cols, 2))
-            res[found] = xy - _radial_apply(p, uv, scale)
+            res[found] = xy - _radial_apply(p, uv, scale, form)
             field = res.reshape(rows, cols, 2)
             if correct is True or residual_predictability(field, found) < CORRECTION_GAIN:
                 model.residual = field
@@ -395,6 +446,7 @@ class RadialMap:
             "residual": self.residual.reshape(rows * cols, 2),
             "residual_shape": np.array([rows, cols], np.float64),
             "lattice": self.lattice,
+            "radial_form": np.array([float(LENS_FORMS.index(self.form))]),
         }
 
     @classmethod
@@ -406,11 +458,18 @@ class RadialMap:
             rows, cols = n, n
         else:
             rows, cols = (round(float(v)) for v in np.ravel(shape)[:2])
+        if np.size(params["radial_params"]) != 13:
+            raise ValueError(f"radial_params has {np.size(params['radial_params'])} values, not 13")
+        form = params.get("radial_form")  # absent before 2026-12-06: the polynomial
+        code = 0 if form is None else round(float(np.ravel(form)[0]))
+        if not 0 <= code < len(LENS_FORMS):
+            raise ValueError(f"radial_form {code}: 0 (poly) or 1 (brown)")
         return cls(
             params["radial_params"].ravel(),
             float(params["radial_scale"].ravel()[0]),
             res.reshape(rows, cols, 2),
             params["lattice"].ravel(),
+            LENS_FORMS[code],
         )
 
     def correction(self, xy: FloatArray) -> FloatArray:
@@ -435,7 +494,7 @@ class RadialMap:
         )
 
     def __call__(self, uv: FloatArray) -> FloatArray:
-        xy = _radial_apply(self.p, _as_points(uv), self.scale)
+        xy = _radial_apply(self.p, _as_points(uv), self.scale, self.form)
         return xy + self.correction(xy)
 
 
