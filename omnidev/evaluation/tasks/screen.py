@@ -24,9 +24,10 @@ and at least 1.5 image px in radius (a smaller dot cannot be resolved).
 Options: ``layout`` (``random``, default: 40 % the 9 x 9 default, else rows,
 columns, margins and radius drawn from the seed; ``default``: 9 x 9 dots),
 ``frames_per_still`` (frames shown per pattern before the kept one),
-``border`` (``region`` or the dissertation's ``tdm``), ``coded`` (also show a
-ChArUco board, :mod:`omnidev.screencal.coded`, and measure it: ``coded.radial.rms``
-etc., ``coded.ok`` 1 or 0 for refused).
+``border`` (``region`` or the dissertation's ``tdm``), ``lens_form`` (the radial
+model's, :func:`~omnidev.screencal.calibration.fit_calibration`: ``auto``, ``poly``
+or ``brown``), ``coded`` (also show a ChArUco board, :mod:`omnidev.screencal.coded`,
+and measure it: ``coded.radial.rms`` etc., ``coded.ok`` 1 or 0 for refused).
 """
 
 from __future__ import annotations
@@ -84,10 +85,11 @@ def _measure(
     xy: np.ndarray,
     screen_px: tuple[int, int],
     methods: Sequence[str] = METHODS,
+    lens_form: str = "auto",
 ) -> dict[str, float]:
     out: dict[str, float] = {}
     for m in methods:
-        est = fit_calibration(features, m).image_to_screen(uv)
+        est = fit_calibration(features, m, lens_form=lens_form).image_to_screen(uv)
         d = _to_ref(est - xy, screen_px)
         e = np.hypot(d[:, 0], d[:, 1])
         ok = np.isfinite(e)
@@ -172,6 +174,7 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     xy = heldout_points(scene.screen_px)
     xy = xy[scene.visible(xy)]
     uv = scene.screen_to_image(xy)
+    lens = str(options.get("lens_form", "auto"))
     if outdir is not None:
         _write(outdir, scene, caps, uv, xy, grid)
     if coded is not None:
@@ -181,7 +184,8 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
             )
             res.metrics["coded.ok"] = 1.0
             res.metrics["coded.found"] = float(cf.dots.count / coded.lattice.count)
-            for k, v in _measure(cf, uv, xy, scene.screen_px, ("radial", "homography")).items():
+            methods = ("radial", "homography")
+            for k, v in _measure(cf, uv, xy, scene.screen_px, methods, lens).items():
                 res.metrics[f"coded.{k}"] = v
         except CalibrationError as exc:
             res.metrics["coded.ok"] = 0.0
@@ -195,7 +199,7 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         res.message = str(exc)
         return res
     res.metrics["dots.found"] = float(features.dots.count / grid.count)
-    res.metrics.update(_measure(features, uv, xy, scene.screen_px))
+    res.metrics.update(_measure(features, uv, xy, scene.screen_px, METHODS, lens))
     return res
 
 
@@ -302,8 +306,18 @@ TASK = Task(
     help="screen calibration (dissertation ch. 5) on randomized scenes",
     run_scene=run_scene,
     summarize=summarize,
-    options={"layout": "random", "frames_per_still": 3, "border": "region", "coded": True},
-    choices={"layout": ("random", "default"), "border": ("region", "tdm")},
+    options={
+        "layout": "random",
+        "frames_per_still": 3,
+        "border": "region",
+        "coded": True,
+        "lens_form": "auto",
+    },
+    choices={
+        "layout": ("random", "default"),
+        "border": ("region", "tdm"),
+        "lens_form": ("auto", "poly", "brown"),
+    },
     ranges={"frames_per_still": (1, 30)},
     headline=(
         "radial.rms",
