@@ -70,8 +70,9 @@ def test_strong_barrel_needs_the_forward_form() -> None:
 
 @pytest.mark.parametrize("seed", [59020, 59135])
 def test_strong_barrel_scenes_meet_the_bound(seed: int) -> None:
-    # 800x600, k1 -0.30 and 1024x768, k1 -0.32: RMS / max 0.23 / 3.83 and 0.42 / 2.99
-    # screen px with the polynomial alone; 0.13 / 0.38 and 0.21 / 0.55 now
+    # 800x600, k1 -0.30 and 1024x768, k1 -0.32: RMS / max 0.23 / 3.83 and 0.42 / 2.19
+    # screen px with the polynomial alone (59135: some held-out points near a corner
+    # mapped off the screen); 0.13 / 0.38 and 0.21 / 0.55 now
     sc, _, feat = detect(seed)
     assert_within_bound(heldout_errors(sc, feat))
     assert fit_calibration(feat).transform.form == "brown"  # type: ignore[attr-defined]

@@ -72,7 +72,7 @@ METHODS = ("radial", "bilinear", "idw", "homography", "tsai")
 DEFAULT_METHOD = "radial"
 # the radial model's lens form: the lens's forward (Brown) distortion and the polynomial
 # undistortion both fitted, the smaller residual kept; the polynomial alone cannot follow
-# a strong barrel lens to the screen's corners (issue 12, held-out 59020, 59135: 3-4 px)
+# a strong barrel lens to the screen's corners (issue 12, 59020, 59135: 2-4 px off there)
 DEFAULT_LENS_FORM = "auto"
 EDGE_TOLERANCE_PX = 1.0  # screen px beyond the screen's edge still mapped (not NaN)
 CORNER_TOLERANCE = 0.02  # of the screen's width: the border's corners against the dots
