@@ -29,12 +29,15 @@ def detect(seed: int) -> tuple[ScreenScene, DotGrid, ScreenFeatures]:
     return sc, grid, detect_screen(caps[0], caps[1], caps[2], layout=grid)
 
 
-def heldout_errors(sc: ScreenScene, feat: ScreenFeatures, method: str = "radial") -> np.ndarray:
-    """Errors (px of a 1920x1080 screen; NaN: not mapped) of ``method`` at the held-out
-    screen points the camera sees."""
+def heldout_errors(
+    sc: ScreenScene, feat: ScreenFeatures, method: str = "radial", lens_form: str = "auto"
+) -> np.ndarray:
+    """Errors (px of a 1920x1080 screen; NaN: not mapped) of ``method`` (with the radial
+    model's ``lens_form``) at the held-out screen points the camera sees."""
     xy = heldout_points(sc.screen_px)
     xy = xy[sc.visible(xy)]
-    est = fit_calibration(feat, method).image_to_screen(sc.screen_to_image(xy))
+    fit = fit_calibration(feat, method, lens_form=lens_form)
+    est = fit.image_to_screen(sc.screen_to_image(xy))
     return np.asarray(np.hypot(*_to_ref(est - xy, sc.screen_px).T), np.float64)
 
 

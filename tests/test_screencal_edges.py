@@ -234,14 +234,17 @@ def test_corner_check_extrapolates_with_the_lens_model_that_agrees() -> None:
 
 def test_edge_profiles_reach_into_the_corners(monkeypatch: pytest.MonkeyPatch) -> None:
     # seed 50060 (1600x900, 9 x 9 dots): the worst error was at the screen's corner, where
-    # the model extrapolated beyond the last edge profile (6 % of the side from it):
-    # 1.92 px; with profiles to 3 % 1.16
+    # the polynomial model's three terms extrapolated beyond the last edge profile (6 % of
+    # the side from it): 1.92 px; with profiles to 3 % 1.16. The forward lens form's two
+    # terms (the default since) hold the corner either way: 0.77 px with profiles to 6 %
     sc, grid, caps = scene(50060)
     e = heldout_errors(sc, detect(50060)[2])
     assert float(e.max()) <= 1.5
+    assert float(heldout_errors(sc, detect(50060)[2], lens_form="poly").max()) <= 1.5
     monkeypatch.setattr(calibration, "EDGE_ENDS", 0.06)
-    far = heldout_errors(sc, detect_screen(caps[0], caps[1], caps[2], layout=grid))
-    assert float(far.max()) > 1.5
+    feat = detect_screen(caps[0], caps[1], caps[2], layout=grid)
+    assert float(heldout_errors(sc, feat, lens_form="poly").max()) > 1.5
+    assert float(heldout_errors(sc, feat).max()) <= 1.5
 
 
 def test_invert_is_nan_without_a_warning_where_the_map_folds() -> None:
