@@ -9,7 +9,12 @@ from functools import cache
 import numpy as np
 
 from omnidev.evaluation.tasks.screen import _captures, _to_ref, draw_layout, heldout_points
-from omnidev.screencal.calibration import ScreenFeatures, detect_screen, fit_calibration
+from omnidev.screencal.calibration import (
+    DEFAULT_LENS_FORM,
+    ScreenFeatures,
+    detect_screen,
+    fit_calibration,
+)
 from omnidev.screencal.patterns import DotGrid
 from omnidev.sim.screen_scenes import ScreenScene, draw_scene
 
@@ -30,7 +35,10 @@ def detect(seed: int) -> tuple[ScreenScene, DotGrid, ScreenFeatures]:
 
 
 def heldout_errors(
-    sc: ScreenScene, feat: ScreenFeatures, method: str = "radial", lens_form: str = "auto"
+    sc: ScreenScene,
+    feat: ScreenFeatures,
+    method: str = "radial",
+    lens_form: str = DEFAULT_LENS_FORM,
 ) -> np.ndarray:
     """Errors (px of a 1920x1080 screen; NaN: not mapped) of ``method`` (with the radial
     model's ``lens_form``) at the held-out screen points the camera sees."""

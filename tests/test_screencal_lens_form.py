@@ -93,9 +93,24 @@ def test_lens_form_saved_and_old_files_read_as_polynomial(tmp_path: Path) -> Non
     # a file written before the lens form existed: the polynomial
     path.write_text(node.sub("", text))
     assert load_screen_calibration(path).transform.form == "poly"  # type: ignore[attr-defined]
+    # a plain number is read too (a hand-edited file)
+    path.write_text(node.sub("radial_form: 1\n", text))
+    assert load_screen_calibration(path).transform.form == "brown"  # type: ignore[attr-defined]
     at = text.index("radial_form:")
     path.write_text(text[:at] + text[at:].replace("[ 1. ]", "[ 7. ]", 1))
     with pytest.raises(CalibrationError, match=r"c\.yml: key radial_form 7"):
+        load_screen_calibration(path)
+    # radial parameters cut short: one line naming the key, not an IndexError later
+    params = re.compile(
+        r"(radial_params: !!opencv-(?:nd-)?matrix\n(?:   .*\n)*?   data: \[)([^\]]*)\]"
+    )
+    m = params.search(text)
+    assert m is not None
+    short = ",".join(m.group(2).split(",")[:12])
+    cut = text[: m.start(2)] + short + "]" + text[m.end() :]
+    cut = cut.replace("sizes: [ 13 ]", "sizes: [ 12 ]").replace("rows: 13", "rows: 12")
+    path.write_text(cut)
+    with pytest.raises(CalibrationError, match=r"c\.yml: key radial_params has 12 values, not 13"):
         load_screen_calibration(path)
 
 

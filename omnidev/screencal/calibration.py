@@ -704,8 +704,13 @@ def load_screen_calibration(path: Path) -> ScreenCalibration:
             keys = ("radial_params", "radial_scale", "residual", "lattice")
             params = {k: read_mat(fs, path, k) for k in keys}
             params["residual_shape"] = np.array([rows, cols], np.float64)
-            if not fs.getNode("radial_form").empty():  # absent before 2026-12-06: poly
-                params["radial_form"] = read_mat(fs, path, "radial_form")
+            node = fs.getNode("radial_form")  # absent before 2026-12-06: poly
+            if not node.empty():  # written as a 1-vector; a plain number is read too
+                params["radial_form"] = (
+                    np.array([read_real(fs, path, "radial_form")])
+                    if node.isReal() or node.isInt()
+                    else read_mat(fs, path, "radial_form")
+                )
             try:
                 transform = RadialMap.from_params(params)
             except ValueError as exc:

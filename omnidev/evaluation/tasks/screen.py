@@ -44,6 +44,7 @@ import numpy as np
 from omnidev.errors import CalibrationError
 from omnidev.evaluation.framework import SceneResult, Task
 from omnidev.screencal.calibration import (
+    DEFAULT_LENS_FORM,
     METHODS,
     ScreenFeatures,
     detect_screen,
@@ -85,7 +86,7 @@ def _measure(
     xy: np.ndarray,
     screen_px: tuple[int, int],
     methods: Sequence[str] = METHODS,
-    lens_form: str = "auto",
+    lens_form: str = DEFAULT_LENS_FORM,
 ) -> dict[str, float]:
     out: dict[str, float] = {}
     for m in methods:
@@ -174,7 +175,7 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     xy = heldout_points(scene.screen_px)
     xy = xy[scene.visible(xy)]
     uv = scene.screen_to_image(xy)
-    lens = str(options.get("lens_form", "auto"))
+    lens = str(options.get("lens_form", DEFAULT_LENS_FORM))
     if outdir is not None:
         _write(outdir, scene, caps, uv, xy, grid)
     if coded is not None:
@@ -311,7 +312,7 @@ TASK = Task(
         "frames_per_still": 3,
         "border": "region",
         "coded": True,
-        "lens_form": "auto",
+        "lens_form": DEFAULT_LENS_FORM,
     },
     choices={
         "layout": ("random", "default"),
