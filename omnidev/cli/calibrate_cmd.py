@@ -440,6 +440,9 @@ def _capture(args: argparse.Namespace, size: tuple[int, int]) -> list[np.ndarray
     return shots
 
 
+_LENS_FORM_NAMES = {"poly": "polynomial undistortion", "brown": "forward distortion"}
+
+
 def run_screen(args: argparse.Namespace) -> int:
     from omnidev.screencal.calibration import (
         DEFAULT_METHOD,
@@ -507,13 +510,11 @@ def run_screen(args: argparse.Namespace) -> int:
     print(
         "screen border polygon P0..P7 (image px): " + " ".join(f"({x:.1f},{y:.1f})" for x, y in v)
     )
-    form = getattr(calib.transform, "form", None)
-    lens = (
-        ""
-        if form is None
-        else f" (lens: {'forward distortion' if form == 'brown' else 'polynomial undistortion'})"
+    lens = _LENS_FORM_NAMES.get(getattr(calib.transform, "form", ""))
+    print(
+        f"dots used: {calib.dots_used} of {layout.count}; method {method}"
+        + (f" (lens: {lens})" if lens else "")
     )
-    print(f"dots used: {calib.dots_used} of {layout.count}; method {method}{lens}")
     if truth is not None:
         _compare(args, features, size, truth)
     elif args.plot is not None:

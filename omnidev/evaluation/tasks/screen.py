@@ -185,8 +185,8 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
             )
             res.metrics["coded.ok"] = 1.0
             res.metrics["coded.found"] = float(cf.dots.count / coded.lattice.count)
-            methods = ("radial", "homography")
-            for k, v in _measure(cf, uv, xy, scene.screen_px, methods, lens).items():
+            pair = ("radial", "homography")
+            for k, v in _measure(cf, uv, xy, scene.screen_px, pair, lens_form=lens).items():
                 res.metrics[f"coded.{k}"] = v
         except CalibrationError as exc:
             res.metrics["coded.ok"] = 0.0
@@ -200,7 +200,7 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         res.message = str(exc)
         return res
     res.metrics["dots.found"] = float(features.dots.count / grid.count)
-    res.metrics.update(_measure(features, uv, xy, scene.screen_px, METHODS, lens))
+    res.metrics.update(_measure(features, uv, xy, scene.screen_px, lens_form=lens))
     return res
 
 
