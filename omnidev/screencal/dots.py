@@ -86,9 +86,16 @@ class _Blobs:
     area: FloatArray  # (m,)
 
 
-def _components(binary: NDArray[np.uint8], border: BorderPolygon) -> _Blobs:
+def _components(
+    binary: NDArray[np.uint8], border: BorderPolygon, expected: int | None = None
+) -> _Blobs:
     """(b.1) Connected components that look like dots: inside the border, fill >= 0.45,
-    width/height within 1:2.5, area within 1/4..4 x the median area."""
+    width/height within 1:2.5, area within 1/4..4 x the typical dot's area.
+
+    The typical area is the median over the ``expected`` largest blobs (the layout's
+    dot count; all blobs when None): where the screen's contrast is low, noise over
+    the threshold map makes hundreds of specks, and their median would refuse every
+    dot as too large."""
     count, _, stats, cents = cv2.connectedComponentsWithStats(binary, connectivity=8)
     if count <= 1:
         return _Blobs(np.zeros((0, 2)), np.zeros(0))
@@ -102,7 +109,8 @@ def _components(binary: NDArray[np.uint8], border: BorderPolygon) -> _Blobs:
         inside = border.contains(c)
         c, area = c[inside], area[inside]
     if len(c):
-        med = float(np.median(area))
+        top = np.sort(area)[::-1][: expected or len(area)]
+        med = float(np.median(top))
         ok = (area >= med / 4) & (area <= med * 4)
         c, area = c[ok], area[ok]
     return _Blobs(c, area)
@@ -541,7 +549,7 @@ def find_dots(
         raise CalibrationError(f"unknown dot indexing {index!r}: 'model' or 'walk'")
     gray = to_gray(dots)
     binary = binarize(gray, tdm)
-    blobs = _components(binary, border)
+    blobs = _components(binary, border, rows * cols)
     if len(blobs.area) < 5:
         raise CalibrationError(
             f"dots not found: {len(blobs.area)} dot-like blobs in the dot image "
