@@ -46,10 +46,11 @@ lint: setup
 # Two workers (pytest-xdist): the VM test (tests/test_kernel_vm.py, one long qemu run,
 # ordered first by tests/conftest.py) on one, the rest beside it on the other. Whole files
 # go to a worker (loadfile), so a module-scoped fixture and the VM boot are made once.
-# PYTEST_WORKERS=0 runs the suite serially.
+# PYTEST_WORKERS=0 runs the suite serially. The 20 slowest tests are listed at the end
+# of the run, to see where the suite's time goes.
 PYTEST_WORKERS ?= 2
 test: lint
-	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder --durations=20
 
 # System files for the pointer daemon (udev rules, units, config, user): needs root.
 #   sudo make install INSTALL_ARGS="--bin-dir /opt/omnidev/bin --camera 046d:0825"
