@@ -35,6 +35,7 @@ from omnidev.screencal.features import (
 
 FloatArray = NDArray[np.float64]
 
+WINDOW_SCALE = 1.25  # the centroid window's semi-axes over the dot's (plus 2 px)
 # The eight scan-window directions of the circular template (Fig. 5.10b).
 _DIRS = [(math.cos(a), math.sin(a)) for a in np.arange(8) * math.pi / 4]
 
@@ -84,6 +85,8 @@ class DotDetection:
 class _Blobs:
     centroid: FloatArray  # (m, 2)
     area: FloatArray  # (m,)
+    elong: FloatArray | None = None  # (m,) major over minor axis of the equal-moment ellipse
+    axis: FloatArray | None = None  # (m, 2) unit vector along the major axis
 
 
 def _components(
@@ -96,24 +99,47 @@ def _components(
     dot count; all blobs when None): where the screen's contrast is low, noise over
     the threshold map makes hundreds of specks, and their median would refuse every
     dot as too large."""
-    count, _, stats, cents = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    count, labels, stats, cents = cv2.connectedComponentsWithStats(binary, connectivity=8)
     if count <= 1:
-        return _Blobs(np.zeros((0, 2)), np.zeros(0))
+        return _Blobs(np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros((0, 2)))
     st = stats[1:].astype(np.float64)
     c = np.asarray(cents[1:], np.float64)
     area = st[:, cv2.CC_STAT_AREA]
+    elong, axis = _elongation(np.asarray(labels, np.int32), count, c, area)
     bw, bh = st[:, cv2.CC_STAT_WIDTH], st[:, cv2.CC_STAT_HEIGHT]
     ok = (area >= 5) & (bw / bh <= 2.5) & (bh / bw <= 2.5) & (area / (bw * bh) >= 0.45)
-    c, area = c[ok], area[ok]
+    c, area, elong, axis = c[ok], area[ok], elong[ok], axis[ok]
     if len(c):
         inside = border.contains(c)
-        c, area = c[inside], area[inside]
+        c, area, elong, axis = c[inside], area[inside], elong[inside], axis[inside]
     if len(c):
         top = np.sort(area)[::-1][: expected or len(area)]
         med = float(np.median(top))
         ok = (area >= med / 4) & (area <= med * 4)
-        c, area = c[ok], area[ok]
-    return _Blobs(c, area)
+        c, area, elong, axis = c[ok], area[ok], elong[ok], axis[ok]
+    return _Blobs(c, area, elong, axis)
+
+
+def _elongation(
+    labels: NDArray[np.int32], count: int, centroid: FloatArray, area: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Each labelled component's equal-moment ellipse (from its pixels' covariance, each
+    pixel a unit square): the major over the minor axis ((count - 1,)) and the major
+    axis's direction ((count - 1, 2) unit vectors, image u right, v down)."""
+    v, u = np.nonzero(labels)
+    lab = labels[v, u] - 1
+    n = count - 1
+    du = u - centroid[lab, 0]
+    dv = v - centroid[lab, 1]
+    a = np.maximum(area, 1.0)
+    suu = np.bincount(lab, du * du, n) / a
+    svv = np.bincount(lab, dv * dv, n) / a
+    suv = np.bincount(lab, du * dv, n) / a
+    half = np.sqrt(0.25 * (suu - svv) ** 2 + suv**2)
+    big, small = 0.5 * (suu + svv) + half, 0.5 * (suu + svv) - half
+    theta = 0.5 * np.arctan2(2.0 * suv, suu - svv)
+    axis = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    return np.sqrt((big + 1.0 / 12.0) / np.maximum(small + 1.0 / 12.0, 1e-6)), axis
 
 
 def _nearest_in_cone(c: FloatArray, pts: FloatArray, direction: tuple[float, float]) -> int:
@@ -178,9 +204,15 @@ EDGE_FLOOR = 0.8  # of the disc's screen level: below it w - b is taken as the e
 
 
 def _centroid(
-    norm: NDArray[np.float32], x: float, y: float, radius: float
+    norm: NDArray[np.float32],
+    x: float,
+    y: float,
+    radius: float,
+    stretch: tuple[float, float, float] | None = None,
 ) -> tuple[float, float] | None:
-    """Centroid of the normalised brightness in the disc of ``radius`` around (x, y).
+    """Centroid of the normalised brightness in the disc of ``radius`` around (x, y), or
+    with ``stretch`` = (ux, uy, long) the ellipse reaching ``long`` along the unit vector
+    (ux, uy) and ``radius`` across it.
 
     ``norm`` is :func:`_normalised`'s (H, W, 2) pair: the dot image's rise over the
     black one, ``d - b``, and the screen's, ``w - b``. The rise is divided by ``w - b``
@@ -191,13 +223,19 @@ def _centroid(
     Pixels off the screen (``w - b`` <= MIN_CONTRAST) weigh 0.
     """
     h, w = norm.shape[:2]
-    r = math.ceil(radius)
+    r = math.ceil(radius if stretch is None else max(radius, stretch[2]))
     xi, yi = round(x), round(y)
     if xi - r < 0 or yi - r < 0 or xi + r >= w or yi + r >= h:
         return None
     patch = norm[yi - r : yi + r + 1, xi - r : xi + r + 1].astype(np.float64)
     gy, gx = np.mgrid[-r : r + 1, -r : r + 1]
-    disc = (gx + xi - x) ** 2 + (gy + yi - y) ** 2 <= radius**2
+    dx, dy = gx + xi - x, gy + yi - y
+    if stretch is None:
+        disc = dx**2 + dy**2 <= radius**2
+    else:
+        ux, uy, long = stretch
+        along, across = dx * ux + dy * uy, dy * ux - dx * uy
+        disc = (along / long) ** 2 + (across / radius) ** 2 <= 1.0
     lift, screen = patch[..., 0], patch[..., 1]
     on = disc & (screen > MIN_CONTRAST)
     if not on.any():
@@ -248,8 +286,19 @@ def _refine(
     x, y, r, _ = _dtm(maps, start, half, radii)
     pos: tuple[float, float] = (float(x), float(y))
     if subpixel:
+        # the window holds the whole dot: a projected dot under a steep view is an
+        # ellipse longer than the template's circle, and a window cutting it moves the
+        # centroid off the full ellipse's, which the perspective correction assumes; so
+        # the window is an ellipse shaped like the blob, of the template's mean radius
+        radius = WINDOW_SCALE * r + 2.0
+        stretch = None
+        if blobs.elong is not None and blobs.axis is not None:
+            q = math.sqrt(float(blobs.elong[k]))  # semi-axes r q and r / q
+            ax = blobs.axis[k]
+            radius = WINDOW_SCALE * r / q + 2.0
+            stretch = (float(ax[0]), float(ax[1]), WINDOW_SCALE * r * q + 2.0)
         for _ in range(10):
-            c = _centroid(norm, pos[0], pos[1], 1.25 * r + 2.0)
+            c = _centroid(norm, pos[0], pos[1], radius, stretch)
             if c is None:
                 break
             moved = math.hypot(c[0] - pos[0], c[1] - pos[1])
