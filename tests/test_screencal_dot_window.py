@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
+from omnidev.errors import CalibrationError
 from omnidev.screencal import dots
 from omnidev.screencal.calibration import detect_screen
 from omnidev.screencal.dots import _elongation
@@ -51,3 +52,12 @@ def test_a_steep_views_large_dots_are_found_whole(monkeypatch: pytest.MonkeyPatc
     caps = scene(62072)[2]
     old = detect_screen(caps[0], caps[1], caps[2], layout=grid)
     assert float(np.nanmax(np.hypot(*(old.dots.centers - true).T))) > 1.5  # measured 1.77
+
+
+def test_dots_too_small_to_measure_are_refused_not_calibrated() -> None:
+    # seed 61011 (out of spec: 352x288, dots of 1.4 image px radius 13 x 7 px apart):
+    # the dots' median miss of the layout is 0.09 spacings (just under the layout
+    # check's 0.1); calibrated, the map was 7.2 px RMS / 21.8 px max off
+    _, grid, caps = scene(61011)
+    with pytest.raises(CalibrationError, match=r"measured too roughly.*1\.5 image px radius"):
+        detect_screen(caps[0], caps[1], caps[2], layout=grid)
