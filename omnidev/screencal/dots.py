@@ -7,8 +7,8 @@ and the rough cross-matrix pattern (CMP) with the spacings W_g, H_g of eq. 5.3;
 (x, y) and radius r with eight scan windows around it, the position and radius of
 maximum edge energy in the search range. Beside the dissertation's integer DTM
 position, ``subpixel=True`` (default) refines each centre by the centroid of the
-dot's normalised brightness ``(d - b) / (w - b)`` in a disc around it (``w - b``
-floored near the screen's edge, see :func:`_centroid`).
+dot's normalised brightness ``(d - b) / (w - b)`` in a window around it shaped like
+the dot's blob (``w - b`` floored near the screen's edge, see :func:`_centroid`).
 
 Positions are image pixels (u right, v down, top-left pixel centre at (0, 0)).
 Dot indices are row-major from the top-left of the screen, as in
@@ -275,7 +275,8 @@ def _refine(
     subpixel: bool,
 ) -> tuple[tuple[float, float], float]:
     """(b.3) DTM position and radius of blob k, then (``subpixel``) the centroid of the
-    normalised brightness in a disc around it, iterated to a fixed point."""
+    normalised brightness in a window around it (an ellipse shaped like the blob), iterated
+    to a fixed point."""
     wg, hg = pitch
     pts = blobs.centroid
     r_cc = math.sqrt(blobs.area[k] / math.pi)
