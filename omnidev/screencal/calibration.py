@@ -295,11 +295,12 @@ def detect_screen(
             f"blobs inside the screen{_grid_summary(blobs, poly, screen_size)}): check "
             "--layout / --n"
         )
-    if float(np.median(res)) > DOT_SCATTER * spacing:
+    miss = float(np.median(res)) / spacing
+    if miss > DOT_SCATTER:
         radius = float(np.nanmedian(det.radius[found]))
         raise CalibrationError(
             f"the {det.count} dots are measured too roughly to calibrate: they miss a "
-            f"{rows} x {cols} layout by a median {float(np.median(res)) / spacing:.3f} dot "
+            f"{rows} x {cols} layout by a median {miss:.3f} dot "
             f"spacings (at most {DOT_SCATTER}); dots of {radius:.1f} image px radius: move "
             "the camera closer, or show fewer, larger dots (--layout)"
         )

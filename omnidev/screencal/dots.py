@@ -85,8 +85,8 @@ class DotDetection:
 class _Blobs:
     centroid: FloatArray  # (m, 2)
     area: FloatArray  # (m,)
-    elong: FloatArray | None = None  # (m,) major over minor axis of the equal-moment ellipse
-    axis: FloatArray | None = None  # (m, 2) unit vector along the major axis
+    elong: FloatArray  # (m,) major over minor axis of the equal-moment ellipse
+    axis: FloatArray  # (m, 2) unit vector along the major axis
 
 
 def _components(
@@ -291,13 +291,10 @@ def _refine(
         # ellipse longer than the template's circle, and a window cutting it moves the
         # centroid off the full ellipse's, which the perspective correction assumes; so
         # the window is an ellipse shaped like the blob, of the template's mean radius
-        radius = WINDOW_SCALE * r + 2.0
-        stretch = None
-        if blobs.elong is not None and blobs.axis is not None:
-            q = math.sqrt(float(blobs.elong[k]))  # semi-axes r q and r / q
-            ax = blobs.axis[k]
-            radius = WINDOW_SCALE * r / q + 2.0
-            stretch = (float(ax[0]), float(ax[1]), WINDOW_SCALE * r * q + 2.0)
+        q = math.sqrt(float(blobs.elong[k]))  # semi-axes r q and r / q
+        ax = blobs.axis[k]
+        radius = WINDOW_SCALE * r / q + 2.0
+        stretch = (float(ax[0]), float(ax[1]), WINDOW_SCALE * r * q + 2.0)
         for _ in range(10):
             c = _centroid(norm, pos[0], pos[1], radius, stretch)
             if c is None:
