@@ -206,8 +206,9 @@ def test_border_refitted_to_the_edge_points_finds_the_corners_the_outline_misses
 
 def test_corner_check_extrapolates_with_the_lens_model_that_agrees() -> None:
     # seed 50140: 10 x 8 dots with one spacing of margin; the three-term radial model of
-    # the dots put the border's corner 0.48-0.55 spacings off (refused), the one-term
-    # model 0.03; with the edges the calibration meets the bound
+    # the dots put the border's corner 0.48-0.55 spacings off (refused; 0.39 since the
+    # dots are weighed at the dot capture's exposure), the one-term model 0.03; with the
+    # edges the calibration meets the bound
     sc, _, feat = detect(50140)
     e = heldout_errors(sc, feat)
     assert_within_bound(e)
@@ -227,7 +228,7 @@ def test_corner_check_extrapolates_with_the_lens_model_that_agrees() -> None:
     for terms in (1, 3):
         m = RadialMap.fit(*args, correct=True, terms=terms)
         off[terms] = float(np.hypot(*(m(corners) - screen).T).max()) / float(feat.lattice[2:].min())
-    assert off[3] > 0.4 > 0.1 > off[1]
+    assert off[3] > 0.3 > 0.1 > off[1]
     with pytest.raises(ValueError, match="terms"):
         RadialMap.fit(*args, terms=4)
 

@@ -323,6 +323,14 @@ def _register_screen(csub: Any) -> None:
         help="screen border from the white-minus-black region (default) or the "
         "dissertation's TDM scan windows",
     )
+    sc.add_argument(
+        "--dot-exposure",
+        choices=("room", "as-is"),
+        default="room",
+        help="the dot capture's exposure: read from the room and the dots thresholded at "
+        "it (default; for auto-exposure cameras) or the images as captured (the "
+        "dissertation)",
+    )
     sc.add_argument("-o", "--output", type=Path, help="calibration file (.yml or .yml.gz)")
     sc.add_argument(
         "--plot",
@@ -504,7 +512,9 @@ def run_screen(args: argparse.Namespace) -> int:
         black = _read_grey(args.black, "black")
         dots = _read_grey(args.dots, "dot-matrix")
     print(f"finding the screen border and the dots ({layout.describe()}) ...", flush=True)
-    features = detect_screen(white, black, dots, layout=layout, border=args.border)
+    features = detect_screen(
+        white, black, dots, layout=layout, border=args.border, exposure=args.dot_exposure
+    )
     calib = fit_calibration(features, method)
     v = features.border.vertices
     print(
@@ -608,6 +618,7 @@ def _compare(
             d2,
             layout=features.layout,
             border=args.border,
+            exposure=args.dot_exposure,
         )
         ok = again.dots.found
         rec = [

@@ -47,6 +47,7 @@ from omnidev.screencal.features import (
     border_from_edges,
     border_from_region,
     edge_points,
+    exposure_gain,
     find_border,
     screen_region,
     threshold_map,
@@ -68,6 +69,7 @@ FloatArray = NDArray[np.float64]
 KIND = "screen-calibration"
 FORMAT_VERSION = 2  # 2: dot layout (rows, cols, margins, radius); version 1 still read
 BORDERS = ("region", "tdm")
+EXPOSURES = ("room", "as-is")  # the dot capture's exposure: matched to the black one's, or not
 METHODS = ("radial", "bilinear", "idw", "homography", "tsai")
 DEFAULT_METHOD = "radial"
 # the radial model's lens form: the lens's forward (Brown) distortion and the polynomial
@@ -126,11 +128,32 @@ class ScreenFeatures:
         return self.dots.shape
 
 
+MAX_UNEXPLAINED = 0.5  # of the dot image's spread outside the screen (see _unexplained)
+
+
+def _unexplained(black: NDArray[np.int16], dots: NDArray[np.int16]) -> float:
+    """How much of the dot image outside the screen the black image does not explain,
+    0 (a function of it) .. about 1 (unrelated): the median distance of each dot-image
+    pixel from the median of the pixels whose black-image level lies in the same bin of
+    16 grey levels, over the dot image's median absolute deviation. An auto-exposure
+    change between the captures (any increasing level map) leaves only the noise; a
+    different scene or a moved camera over a textured room does not."""
+    bins = black // 16
+    dev = np.empty(dots.shape, np.float64)
+    for k in np.unique(bins):
+        sel = bins == k
+        dev[sel] = np.abs(dots[sel] - np.median(dots[sel]))
+    spread = float(np.median(np.abs(dots - np.median(dots))))
+    return float(np.median(dev)) / max(spread, 1.0)
+
+
 def _check_scene(
     w: NDArray[np.uint8], b: NDArray[np.uint8], d: NDArray[np.uint8], screen: NDArray[np.bool_]
 ) -> None:
     """Swapped or mismatched images, judged on the screen region (auto-exposure may
-    brighten the room in the black image; only the screen must be darker there)."""
+    brighten the room in the black image; only the screen must be darker there); the
+    dot image outside the screen must differ from the black image by little, or by a
+    change of exposure alone."""
     wi, bi, di = (x.astype(np.int16) for x in (w, b, d))
     diff = wi - bi
     on = screen
@@ -142,10 +165,13 @@ def _check_scene(
     off = ~cv2.dilate(screen.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
     if np.count_nonzero(off) > 0.02 * off.size:
         mismatch = float(np.median(np.abs(di - bi)[off]))
-        if mismatch > 2 * MIN_CONTRAST:
+        unexplained = _unexplained(bi[off], di[off])
+        if mismatch > 2 * MIN_CONTRAST and unexplained > MAX_UNEXPLAINED:
             raise CalibrationError(
                 "the dot image does not match the black image outside the screen "
-                f"(median difference {mismatch:.0f} grey levels): different scene or camera moved?"
+                f"(median difference {mismatch:.0f} grey levels, {100 * unexplained:.0f} % of "
+                "its spread not explained by a change of exposure): different scene or "
+                "camera moved?"
             )
     if np.count_nonzero(on) and np.count_nonzero(
         di[on] > (wi[on] + bi[on]) // 2
@@ -225,6 +251,7 @@ def detect_screen(
     border: str = "region",
     index: str = "model",
     use_edges: bool = True,
+    exposure: str = "room",
 ) -> ScreenFeatures:
     """Measure the border polygon, the TDM and the dot centres in the three images.
 
@@ -236,14 +263,23 @@ def detect_screen(
     dissertation's CMP walk), see :func:`omnidev.screencal.dots.find_dots`;
     ``use_edges``: also measure sub-pixel points on the screen's edges
     (:func:`~omnidev.screencal.features.edge_points`), which the ``radial`` method
-    fits beside the dots.
+    fits beside the dots; ``exposure``: ``room`` (default) reads the dot capture's
+    exposure from the room (:func:`~omnidev.screencal.features.exposure_gain`) and
+    thresholds and weighs the dots against the white and black images at it
+    (:func:`~omnidev.screencal.dots.dot_threshold`: an auto-exposure camera sets it
+    between theirs); ``as-is`` takes the images as captured (the dissertation).
     Raises CalibrationError saying what was found.
     """
+    if exposure not in EXPOSURES:
+        raise CalibrationError(
+            f"unknown dot exposure {exposure!r}; choose from {', '.join(EXPOSURES)}"
+        )
     w, b, d = _grey_images(white, black, dots, "dots", border)
     grid = dot_grid(screen_size[0], screen_size[1], n) if layout is None else layout
     screen_size = grid.screen_px
     rows, cols = grid.shape
     poly, tdm, gain = _border_tdm(w, b, d, border)
+    dot_gain = exposure_gain(d, b, tdm < 255) if exposure == "room" else None
     det = find_dots(
         d,
         w,
@@ -256,6 +292,7 @@ def detect_screen(
         subpixel=subpixel,
         index=index,
         black_gain=gain,
+        dot_gain=dot_gain,
     )
     need = min_dots(rows, cols)
     expected = rows * cols

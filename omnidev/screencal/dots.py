@@ -311,6 +311,7 @@ def _normalised(
     white: NDArray[np.uint8],
     black: NDArray[np.uint8],
     black_gain: float = 1.0,
+    dot_gain: float | None = None,
 ) -> NDArray[np.float32]:
     """(H, W, 2): the dot image's rise over the black image and the white image's
     (grey levels), for :func:`_centroid`. The white image's is taken with the black
@@ -318,11 +319,46 @@ def _normalised(
     :func:`~omnidev.screencal.features.exposure_gain`): where auto-exposure made the
     black capture the brighter (a projector's dim corner), ``w - b`` fell to zero and
     the dots' pixels there weighed nothing (scene 54076 of issue 12: a dot 3 image px
-    off)."""
+    off). With ``dot_gain`` (the dot capture's exposure over the black one's) both
+    rises are taken at the dot capture's exposure, the white and black images scaled
+    to it (:func:`dot_exposure`)."""
+    if dot_gain is not None:
+        w_d, b_d = dot_exposure(white, black, black_gain, dot_gain)
+        return np.stack([gray.astype(np.float32) - b_d, w_d - b_d], axis=-1)
     w_img = to_gray(white).astype(np.float32)
     b = to_gray(black)
     b_img = b.astype(np.float32)
     return np.stack([gray.astype(np.float32) - b_img, w_img - at_exposure(b, black_gain)], axis=-1)
+
+
+def dot_exposure(
+    white: NDArray[np.uint8], black: NDArray[np.uint8], black_gain: float, dot_gain: float
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """The white and black images as they would read at the dot capture's exposure
+    (float32 grey levels, clipped at 255 as the dot capture is): ``black_gain`` is the
+    white capture's exposure over the black one's, ``dot_gain`` the dot capture's
+    (:func:`~omnidev.screencal.features.exposure_gain` of each against the black
+    image). An auto-exposure camera sets the dot capture between the other two."""
+    b_d = np.minimum(at_exposure(to_gray(black), dot_gain), 255.0)
+    w_d = np.minimum(at_exposure(to_gray(white), dot_gain / black_gain), 255.0)
+    return w_d, b_d
+
+
+def dot_threshold(
+    white: NDArray[np.uint8],
+    black: NDArray[np.uint8],
+    tdm: NDArray[np.uint8],
+    black_gain: float,
+    dot_gain: float,
+) -> NDArray[np.uint8]:
+    """Eq. 5.1's threshold map at the dot capture's exposure (:func:`dot_exposure`):
+    ``b + (w - b) / 2`` of the scaled images where ``tdm`` is below 255, 255 elsewhere."""
+    w_d, b_d = dot_exposure(white, black, black_gain, dot_gain)
+    inside = tdm < 255
+    t = np.full(tdm.shape, 255, np.uint8)
+    mid = b_d[inside] + np.maximum(w_d[inside] - b_d[inside], 0.0) / 2
+    t[inside] = np.clip(np.floor(mid), 0, 254).astype(np.uint8)
+    return t
 
 
 def _corner_homography(border: BorderPolygon, screen_size: tuple[int, int]) -> FloatArray:
@@ -523,6 +559,7 @@ def _find_by_model(
     screen_size: tuple[int, int],
     subpixel: bool,
     black_gain: float,
+    dot_gain: float | None,
 ) -> DotDetection:
     pts = blobs.centroid
     image_size = (gray.shape[1], gray.shape[0])
@@ -532,7 +569,7 @@ def _find_by_model(
     hg = float(np.nanmedian(np.hypot(*(g[1:] - g[:-1]).reshape(-1, 2).T))) if rows > 1 else 8
     wg = wg if math.isfinite(wg) else 8.0
     hg = hg if math.isfinite(hg) else 8.0
-    norm = _normalised(gray, white, black, black_gain)
+    norm = _normalised(gray, white, black, black_gain, dot_gain)
     maps = _edge_maps(gray)
     centers = np.full((rows * cols, 2), np.nan)
     radius = np.full(rows * cols, np.nan)
@@ -570,6 +607,7 @@ def find_dots(
     subpixel: bool = True,
     index: str = "model",
     black_gain: float = 1.0,
+    dot_gain: float | None = None,
 ) -> DotDetection:
     """Find the dot centres (sec. 5.2.2b) in image pixels.
 
@@ -589,12 +627,17 @@ def find_dots(
     each rough CMP cross (eq. 5.3 spacing, moved by its found neighbours' offsets)
     takes the component nearest to it within the search range; the DTM then fixes
     the centre. Missing dots are NaN in ``centers``. ``black_gain``: the white
-    capture's exposure over the black one's (:func:`_normalised`).
+    capture's exposure over the black one's (:func:`_normalised`); ``dot_gain``: the
+    dot capture's over the black one's, or None (eq. 5.2 on the images as captured):
+    the dot image is then thresholded, and its dots weighed, against the white and
+    black images at its own exposure (:func:`dot_threshold`).
     """
     rows, cols = (n, n) if isinstance(n, int) else (int(n[0]), int(n[1]))
     if index not in ("model", "walk"):
         raise CalibrationError(f"unknown dot indexing {index!r}: 'model' or 'walk'")
     gray = to_gray(dots)
+    if dot_gain is not None:
+        tdm = dot_threshold(white, black, tdm, black_gain, dot_gain)
     binary = binarize(gray, tdm)
     blobs = _components(binary, border, rows * cols)
     if len(blobs.area) < 5:
@@ -615,6 +658,7 @@ def find_dots(
             screen_size,
             subpixel,
             black_gain,
+            dot_gain,
         )
     centre = border.vertices[[1, 3, 5, 7]].mean(axis=0)
     pts = blobs.centroid
@@ -645,7 +689,7 @@ def find_dots(
     k0 = int(np.argmin(np.hypot(*(screen_dots - s0).T)))
     r0, q0 = divmod(k0, cols)
 
-    norm = _normalised(gray, white, black, black_gain)
+    norm = _normalised(gray, white, black, black_gain, dot_gain)
     maps = _edge_maps(gray)
 
     centers = np.full((rows, cols, 2), np.nan)

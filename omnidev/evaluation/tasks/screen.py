@@ -26,8 +26,10 @@ columns, margins and radius drawn from the seed; ``default``: 9 x 9 dots),
 ``frames_per_still`` (frames shown per pattern before the kept one),
 ``border`` (``region`` or the dissertation's ``tdm``), ``lens_form`` (the radial
 model's, :func:`~omnidev.screencal.calibration.fit_calibration`: ``auto``, ``poly``
-or ``brown``), ``coded`` (also show a ChArUco board, :mod:`omnidev.screencal.coded`,
-and measure it: ``coded.radial.rms`` etc., ``coded.ok`` 1 or 0 for refused).
+or ``brown``), ``exposure`` (the dot capture's: ``room``, read from the room, or
+``as-is``, :func:`~omnidev.screencal.calibration.detect_screen`), ``coded`` (also show
+a ChArUco board, :mod:`omnidev.screencal.coded`, and measure it: ``coded.radial.rms``
+etc., ``coded.ok`` 1 or 0 for refused).
 """
 
 from __future__ import annotations
@@ -193,7 +195,12 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
             res.notes["coded"] = str(exc)
     try:
         features = detect_screen(
-            white, black, dots, layout=grid, border=str(options.get("border", "region"))
+            white,
+            black,
+            dots,
+            layout=grid,
+            border=str(options.get("border", "region")),
+            exposure=str(options.get("exposure", "room")),
         )
     except CalibrationError as exc:
         res.status = "refused"
@@ -313,11 +320,13 @@ TASK = Task(
         "border": "region",
         "coded": True,
         "lens_form": DEFAULT_LENS_FORM,
+        "exposure": "room",
     },
     choices={
         "layout": ("random", "default"),
         "border": ("region", "tdm"),
         "lens_form": ("auto", "poly", "brown"),
+        "exposure": ("room", "as-is"),
     },
     ranges={"frames_per_still": (1, 30)},
     headline=(
