@@ -592,8 +592,8 @@ def _compare(
     truth: tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]],
 ) -> None:
     """Every method's error on the truth pairs (and Fig. 5.14 with --recaptured)."""
-    from omnidev.screencal.calibration import METHODS, detect_screen, fit_calibration
-    from omnidev.screencal.evaluate import MethodErrors, compare_methods, table
+    from omnidev.screencal.calibration import METHODS, detect_screen
+    from omnidev.screencal.evaluate import MethodErrors, compare_methods, estimate, table
     from omnidev.screencal.plots import plot_error_vectors
 
     uv, xy = truth
@@ -625,7 +625,7 @@ def _compare(
             MethodErrors(
                 m,
                 features.screen_dots[ok],
-                fit_calibration(features, m).image_to_screen(again.dots.centers[ok]),
+                estimate(features, m, again.dots.centers[ok]),
             )
             for m in METHODS
         ]

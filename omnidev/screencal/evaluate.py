@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from omnidev.errors import CalibrationError
 from omnidev.screencal.calibration import (
     METHODS,
     ScreenCalibration,
@@ -71,12 +72,18 @@ def compare_methods(
     methods: tuple[str, ...] = METHODS,
 ) -> list[MethodErrors]:
     """Fit every method to the same features and measure it on image points ``uv``
-    whose true screen pixels are ``xy_true``."""
-    out = []
-    for m in methods:
-        calib = fit_calibration(features, m)
-        out.append(MethodErrors(m, xy_true, calib.image_to_screen(uv)))
-    return out
+    whose true screen pixels are ``xy_true``; a method that cannot be fitted to them
+    (the cell methods need a border polygon closed around the dots) misses every point."""
+    return [MethodErrors(m, xy_true, estimate(features, m, uv)) for m in methods]
+
+
+def estimate(features: ScreenFeatures, method: str, uv: FloatArray) -> FloatArray:
+    """Screen px of image points ``uv`` by ``method`` fitted to ``features``; NaN where
+    the method cannot be fitted to them."""
+    try:
+        return fit_calibration(features, method).image_to_screen(uv)
+    except CalibrationError:
+        return np.full((len(uv), 2), np.nan)
 
 
 def errors_of(calib: ScreenCalibration, uv: FloatArray, xy_true: FloatArray) -> MethodErrors:

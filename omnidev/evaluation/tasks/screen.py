@@ -92,7 +92,12 @@ def _measure(
 ) -> dict[str, float]:
     out: dict[str, float] = {}
     for m in methods:
-        est = fit_calibration(features, m, lens_form=lens_form).image_to_screen(uv)
+        try:
+            fit = fit_calibration(features, m, lens_form=lens_form)
+        except CalibrationError:  # e.g. the cell methods' grid needs a closed polygon
+            out[f"{m}.refused"] = 1.0
+            continue
+        est = fit.image_to_screen(uv)
         d = _to_ref(est - xy, screen_px)
         e = np.hypot(d[:, 0], d[:, 1])
         ok = np.isfinite(e)
@@ -208,6 +213,12 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         return res
     res.metrics["dots.found"] = float(features.dots.count / grid.count)
     res.metrics.update(_measure(features, uv, xy, scene.screen_px, lens_form=lens))
+    if res.metrics.get("radial.refused"):
+        try:
+            fit_calibration(features, "radial", lens_form=lens)
+        except CalibrationError as exc:
+            res.status = "refused"
+            res.message = str(exc)
     return res
 
 
