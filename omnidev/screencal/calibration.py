@@ -69,7 +69,7 @@ FloatArray = NDArray[np.float64]
 KIND = "screen-calibration"
 FORMAT_VERSION = 2  # 2: dot layout (rows, cols, margins, radius); version 1 still read
 BORDERS = ("region", "tdm")
-EXPOSURES = ("room", "as-is")  # the dot capture's exposure: matched to the black one's, or not
+EXPOSURES = ("room", "as-is")  # the dots at their own capture's exposure, or as captured
 METHODS = ("radial", "bilinear", "idw", "homography", "tsai")
 DEFAULT_METHOD = "radial"
 # the radial model's lens form: the lens's forward (Brown) distortion and the polynomial
