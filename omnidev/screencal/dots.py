@@ -311,7 +311,7 @@ def _normalised(
     white: NDArray[np.uint8],
     black: NDArray[np.uint8],
     black_gain: float = 1.0,
-    dot_gain: float | None = None,
+    scaled: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
 ) -> NDArray[np.float32]:
     """(H, W, 2): the dot image's rise over the black image and the white image's
     (grey levels), for :func:`_centroid`. The white image's is taken with the black
@@ -319,11 +319,10 @@ def _normalised(
     :func:`~omnidev.screencal.features.exposure_gain`): where auto-exposure made the
     black capture the brighter (a projector's dim corner), ``w - b`` fell to zero and
     the dots' pixels there weighed nothing (scene 54076 of issue 12: a dot 3 image px
-    off). With ``dot_gain`` (the dot capture's exposure over the black one's) both
-    rises are taken at the dot capture's exposure, the white and black images scaled
-    to it (:func:`dot_exposure`)."""
-    if dot_gain is not None:
-        w_d, b_d = dot_exposure(white, black, black_gain, dot_gain)
+    off). With ``scaled``, the white and black images at the dot capture's exposure
+    (:func:`dot_exposure`), both rises are taken at that exposure."""
+    if scaled is not None:
+        w_d, b_d = scaled
         return np.stack([gray.astype(np.float32) - b_d, w_d - b_d], axis=-1)
     w_img = to_gray(white).astype(np.float32)
     b = to_gray(black)
@@ -345,15 +344,11 @@ def dot_exposure(
 
 
 def dot_threshold(
-    white: NDArray[np.uint8],
-    black: NDArray[np.uint8],
-    tdm: NDArray[np.uint8],
-    black_gain: float,
-    dot_gain: float,
+    w_d: NDArray[np.float32], b_d: NDArray[np.float32], tdm: NDArray[np.uint8]
 ) -> NDArray[np.uint8]:
-    """Eq. 5.1's threshold map at the dot capture's exposure (:func:`dot_exposure`):
-    ``b + (w - b) / 2`` of the scaled images where ``tdm`` is below 255, 255 elsewhere."""
-    w_d, b_d = dot_exposure(white, black, black_gain, dot_gain)
+    """Eq. 5.1's threshold map at the dot capture's exposure: ``b + (w - b) / 2`` of the
+    white and black images scaled to it (:func:`dot_exposure`) where ``tdm`` is below
+    255, 255 elsewhere."""
     inside = tdm < 255
     t = np.full(tdm.shape, 255, np.uint8)
     mid = b_d[inside] + np.maximum(w_d[inside] - b_d[inside], 0.0) / 2
@@ -559,7 +554,7 @@ def _find_by_model(
     screen_size: tuple[int, int],
     subpixel: bool,
     black_gain: float,
-    dot_gain: float | None,
+    scaled: tuple[NDArray[np.float32], NDArray[np.float32]] | None,
 ) -> DotDetection:
     pts = blobs.centroid
     image_size = (gray.shape[1], gray.shape[0])
@@ -569,7 +564,7 @@ def _find_by_model(
     hg = float(np.nanmedian(np.hypot(*(g[1:] - g[:-1]).reshape(-1, 2).T))) if rows > 1 else 8
     wg = wg if math.isfinite(wg) else 8.0
     hg = hg if math.isfinite(hg) else 8.0
-    norm = _normalised(gray, white, black, black_gain, dot_gain)
+    norm = _normalised(gray, white, black, black_gain, scaled)
     maps = _edge_maps(gray)
     centers = np.full((rows * cols, 2), np.nan)
     radius = np.full(rows * cols, np.nan)
@@ -636,8 +631,9 @@ def find_dots(
     if index not in ("model", "walk"):
         raise CalibrationError(f"unknown dot indexing {index!r}: 'model' or 'walk'")
     gray = to_gray(dots)
-    if dot_gain is not None:
-        tdm = dot_threshold(white, black, tdm, black_gain, dot_gain)
+    scaled = None if dot_gain is None else dot_exposure(white, black, black_gain, dot_gain)
+    if scaled is not None:
+        tdm = dot_threshold(*scaled, tdm)
     binary = binarize(gray, tdm)
     blobs = _components(binary, border, rows * cols)
     if len(blobs.area) < 5:
@@ -658,7 +654,7 @@ def find_dots(
             screen_size,
             subpixel,
             black_gain,
-            dot_gain,
+            scaled,
         )
     centre = border.vertices[[1, 3, 5, 7]].mean(axis=0)
     pts = blobs.centroid
@@ -689,7 +685,7 @@ def find_dots(
     k0 = int(np.argmin(np.hypot(*(screen_dots - s0).T)))
     r0, q0 = divmod(k0, cols)
 
-    norm = _normalised(gray, white, black, black_gain, dot_gain)
+    norm = _normalised(gray, white, black, black_gain, scaled)
     maps = _edge_maps(gray)
 
     centers = np.full((rows, cols, 2), np.nan)
