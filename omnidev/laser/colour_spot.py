@@ -131,6 +131,28 @@ def _median(x: NDArray[Any]) -> float:
     return (int(part[n // 2 - 1]) + int(part[n // 2])) / 2
 
 
+_LAYOUTS: dict[int, tuple[Any, ...]] = {}
+
+
+def _layout(k: int) -> tuple[Any, ...]:
+    """The parameter layout of :func:`_fit_beams` for ``k`` channels (cached): p, the
+    lower and upper bounds (the upper width bounds set per fit), the indices of each
+    channel's ln A, ln s and b, and where each channel's 5 x 5 block of J^T J (and its
+    5 entries of J^T r) are summed into the p x p matrix (the p vector)."""
+    if k not in _LAYOUTS:
+        p = 2 + 3 * k
+        lo = np.full(p, -np.inf)
+        hi = np.full(p, np.inf)
+        lo[2:] = np.tile((math.log(1e-3), math.log(0.3), -0.5), k)
+        hi[2::3], hi[4::3] = math.log(100.0), 0.5
+        chan = np.arange(k)
+        ca, cs, cb = 2 + 3 * chan, 3 + 3 * chan, 4 + 3 * chan
+        cols = np.stack([np.zeros(k, np.int64), np.ones(k, np.int64), ca, cs, cb], axis=1)
+        h_at = (cols[:, :, None] * p + cols[:, None, :]).ravel()
+        _LAYOUTS[k] = (p, lo, hi, ca, cs, cb, h_at, cols.ravel(), np.arange(p) * (p + 1))
+    return _LAYOUTS[k]
+
+
 def _fit_beams(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -149,20 +171,13 @@ def _fit_beams(
     |b| <= 0.5); stops when the centre moves less than 0.05 px. Returns the centre
     (u, v) of the best fit found, or None if the normal equations are singular."""
     k, n = obs.shape
-    p = 2 + 3 * k
-    lo = np.full(p, -np.inf)
-    hi = np.full(p, np.inf)
-    lo[2:] = np.tile((math.log(1e-3), math.log(0.3), -0.5), k)
-    hi[2::3], hi[4::3] = math.log(100.0), 0.5
+    p, lo, hi0, ca, cs, cb, h_at, g_at, diag = _layout(k)
+    hi = hi0.copy()
     hi[3::3] = np.log(4 * np.exp(start[3::3]) + 8)
-    chan = np.arange(k)
-    ca, cs, cb = 2 + 3 * chan, 3 + 3 * chan, 4 + 3 * chan
-    # channel j's Jacobian has 5 non-zero columns (u, v, its A, s, b): the normal
-    # equations are summed from K 5 x 5 blocks at these places of the p x p matrix
-    cols = np.stack([np.zeros(k, np.int64), np.ones(k, np.int64), ca, cs, cb], axis=1)
-    h_at = (cols[:, :, None] * p + cols[:, None, :]).ravel()
-    g_at = cols.ravel()
-    jac = np.empty((5, k, n))
+    # channel j's Jacobian has 5 non-zero columns (u, v, its A, s, b): K x 5 x N
+    jac = np.empty((k, 5, n))
+    jac[:, 4] = 1.0
+    any_c = bool(cens.any())
 
     def normal(
         t: NDArray[np.float64],
@@ -171,39 +186,46 @@ def _fit_beams(
         dx, dy = x - t[0], y - t[1]
         d2 = dx * dx + dy * dy
         inv = np.exp(-2.0 * t[cs])
-        g = np.exp(d2[None, :] * (-0.5 * inv[:, None]) + t[ca][:, None])
+        g = np.exp(np.multiply.outer(-0.5 * inv, d2) + t[ca][:, None])
         pred = g + t[cb][:, None]
         gi = g * inv[:, None]
-        jac[0], jac[1], jac[2], jac[3], jac[4] = gi * dx, gi * dy, g, gi * d2, 1.0
+        np.multiply(gi, dx, out=jac[:, 0])
+        np.multiply(gi, dy, out=jac[:, 1])
+        jac[:, 2] = g
+        np.multiply(gi, d2, out=jac[:, 3])
         res = obs - pred
+        over = None
         if any_c:  # censored: no residual once the beam fills the room, else the shortfall
             over = cens & (pred >= room)
-            under = cens & ~over
-            res[under] = room[under] - pred[under]
-            res[over] = 0.0
-            jac[:, over] = 0.0
-        jk = jac.transpose(1, 0, 2)  # K x 5 x N
-        hb = jk @ jk.transpose(0, 2, 1)
-        gb = jk @ res[:, :, None]
+            res = np.where(cens, np.where(over, 0.0, room - pred), res)
+            if over.any():
+                np.multiply(jac, ~over[:, None, :], out=jac)
+            else:
+                over = None
+        hb = jac @ jac.transpose(0, 2, 1)
+        gb = jac @ res[:, :, None]
+        if over is not None:
+            jac[:, 4] = 1.0
         h = np.asarray(np.bincount(h_at, hb.ravel(), p * p), np.float64).reshape(p, p)
         grad = np.asarray(np.bincount(g_at, gb.ravel(), p), np.float64)
-        return float((res * res).sum()), h, grad
+        return float(np.vdot(res, res)), h, grad
 
-    any_c = bool(cens.any())
     th = np.clip(start, lo, hi)
     cost, h, grad = normal(th)
     lam = 1e-3
     for _ in range(iterations):
+        a = h.copy()
+        a.flat[diag] += lam * (a.flat[diag] + 1e-9)
         try:
-            step = np.linalg.solve(h + lam * np.diag(np.diag(h) + 1e-9), grad)
+            step = np.linalg.solve(a, grad)
         except np.linalg.LinAlgError:
             return None
         cand = th + step
-        if np.all(np.isfinite(cand)) and np.all(cand >= lo) and np.all(cand <= hi):
+        if np.all((cand >= lo) & (cand <= hi) & np.isfinite(cand)):
             c2, h2, g2 = normal(cand)
             if c2 < cost:
                 th, cost, h, grad, lam = cand, c2, h2, g2, lam * 0.3
-                if float(np.abs(step[:2]).max()) < 0.05:
+                if abs(step[0]) < 0.05 and abs(step[1]) < 0.05:
                     break
                 continue
         lam *= 10.0
@@ -495,14 +517,16 @@ class ColourSpotDetector:
         if not self.search_first:
             self._fix_darker(image, dec_any)
         cands = []
+        clipped_of: dict[int, NDArray[np.uint8]] = {}
         for c in self.channels:
             lc = np.asarray(cv2.extractChannel(image, c), np.uint8)
-            if self.peak_margin < 255:
+            if self.peak_margin < 255 and self._top.get(c, 0) < 255:
                 top = int(cv2.minMaxLoc(lc, self._mask8)[1])
                 self._top[c] = max(self._top.get(c, 0), top)
             clipped = np.asarray(
                 cv2.threshold(lc, self.saturated - 1, 255, cv2.THRESH_BINARY)[1], np.uint8
             )
+            clipped_of[c] = clipped
             cand = np.asarray(cv2.bitwise_and(clipped, self._low[c]), np.uint8)
             if self.bright_rise > 0:
                 self._add_bright(image, bg, c, clipped, cand)
@@ -513,7 +537,7 @@ class ColourSpotDetector:
         # fix's reach would take half the spot into the model), and its window is held
         if self.search_first:
             self._fix_darker(image, dec_any, spot)
-        self._update(image, spot)
+        self._update(image, spot, clipped_of)
         return spot
 
     def _add_bright(
@@ -723,9 +747,15 @@ class ColourSpotDetector:
         grown = cv2.dilate(foot, self._k7).view(bool)
         bg[v0:v1, u0:u1][grown] = opened[grown]
 
-    def _update(self, image: NDArray[np.uint8], spot: LaserSpot | None) -> None:
+    def _update(
+        self,
+        image: NDArray[np.uint8],
+        spot: LaserSpot | None,
+        clipped_of: dict[int, NDArray[np.uint8]],
+    ) -> None:
         """Blend one row band of the frame into the model, except where a laser channel
-        newly clipped (a spot, found or not) and the spot's window."""
+        newly clipped (a spot, found or not; ``clipped_of``: per laser channel, 255 where
+        the frame clips it) and the spot's window."""
         bg = self.background
         assert bg is not None
         h, w = image.shape[:2]
@@ -737,7 +767,7 @@ class ColourSpotDetector:
         keep = np.zeros((b1 - b0, w), np.uint8)
         band = image[b0:b1]
         for c, plane in self._planes.items():
-            clipped = cv2.threshold(cv2.extractChannel(band, c), self.saturated - 1, 1, 0)[1]
+            clipped = clipped_of[c][b0:b1]
             was_low = cv2.threshold(plane[b0:b1], self.saturated - self.new_margin - 1, 1, 1)[1]
             keep = cv2.max(keep, cv2.bitwise_and(clipped, was_low))
         if spot is not None:
@@ -799,18 +829,14 @@ class ColourSpotDetector:
                 gx += int(np.argmax(row == j))
                 seeds.append((c, int(x0 + gx), int(y0 + gy)))
         found: list[LaserSpot] = []
-        measured = np.zeros((h, w), bool)
+        measured: list[tuple[int, int, int, int]] = []  # image boxes already measured
         tried = 0
         for c, su, sv in seeds:
-            if measured[sv, su]:
+            if any(v0 <= sv < v1 and u0 <= su < u1 for v0, v1, u0, u1 in measured):
                 continue
             spot, blob_box = self._measure(image, bg, c, su, sv, h, w)
             tried += 1
-            if blob_box is not None:
-                v0, v1, u0, u1 = blob_box
-                measured[v0:v1, u0:u1] = True
-            else:
-                measured[sv, su] = True
+            measured.append(blob_box if blob_box is not None else (sv, sv + 1, su, su + 1))
             if spot is not None:
                 found.append(spot)
             if tried >= 48:
