@@ -229,3 +229,18 @@ def test_eval_screen_sample(seed: int) -> None:
     assert m["idw.rms"] > 5 and m["homography.rms"] > m["radial.rms"]
     assert m["coded.ok"] == 1.0 and m["coded.radial.rms"] < 1.0
     assert res.flags["in_spec"] and res.classes["camera"] == ">=640x480"
+
+
+def test_eval_screen_outline_must_leave_a_pixel_beyond_every_side() -> None:
+    """A screen whose top side lies 0.03 px inside the range of pixel centres (scene
+    67075) is refused as cut by the picture's edge and is not in the task's spec; one
+    0.65 px inside (64180) is."""
+    from omnidev.evaluation.tasks.screen import SCREEN_MARGIN_PX, screen_margin
+    from omnidev.sim.screen_scenes import draw_scene
+
+    cut, kept = draw_scene(67075), draw_scene(64180)
+    assert 0.0 < screen_margin(cut) < 0.05 and 0.6 < screen_margin(kept) < 0.7
+    assert cut.screen_fully_visible() and kept.screen_fully_visible()
+    res = run_one(load_task("screen"), 67075, {**load_task("screen").options, "coded": False}, None)
+    assert res.status == "refused" and "cut by the picture's top edge" in res.message
+    assert not res.flags["in_spec"] and screen_margin(cut) < SCREEN_MARGIN_PX

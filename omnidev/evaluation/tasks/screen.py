@@ -16,7 +16,9 @@ Figures per method M: ``M.rms``, ``M.p95``, ``M.max`` and ``M.missed``
 ``dots.found`` (fraction of the pattern's dots found), ``dots.visible`` (the
 fraction the truth says are visible, whole disc). Flags: ``in_spec`` (the
 whole screen and >= 90 % of the dots visible: the scenes the method must not
-refuse), ``large`` (camera >= 640x480).
+refuse; the whole screen means its outline is not occluded and lies at least
+:data:`SCREEN_MARGIN_PX` inside the range of pixel centres, so that every side has
+a whole pixel of the picture beyond it), ``large`` (camera >= 640x480).
 
 A dot counts as visible when its whole disc is in the picture, not occluded,
 and at least 1.5 image px in radius (a smaller dot cannot be resolved).
@@ -116,6 +118,26 @@ def _measure(
 
 
 MIN_DOT_RADIUS_PX = 1.5  # image px: a smaller dot is not "visible" (it cannot be resolved)
+# image px: the screen's outline must lie this far inside the range of pixel centres for
+# the screen to be "whole in the picture": at least one whole pixel beyond every side
+# (a side within the last row or column of pixels leaves nothing outside it to see the
+# edge against). Added 2026-12-07 after scene 67075 (a side 0.03 px inside the pixel-centre
+# range, refused as cut by the picture's edge); before, any outline point in the range
+# counted. Over 62000-67199 it takes that one scene out of the in-spec ones (the next
+# closest: 64180, 0.65 px; 64061, 0.93 px; both calibrated).
+SCREEN_MARGIN_PX = 0.5
+
+
+def screen_margin(scene: ScreenScene) -> float:
+    """How far (image px) the screen's outline lies inside the range of pixel centres
+    (0 .. W - 1, 0 .. H - 1) at its closest; negative where it leaves the picture."""
+    uv = scene.screen_to_image(scene.screen_border())
+    if not np.all(np.isfinite(uv)):
+        return -math.inf
+    w, h = scene.size
+    return float(
+        min(uv[:, 0].min(), uv[:, 1].min(), w - 1 - uv[:, 0].max(), h - 1 - uv[:, 1].max())
+    )
 
 
 def draw_layout(seed: int, screen_px: tuple[int, int], kind: str) -> DotGrid:
@@ -175,7 +197,11 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     classes["layout"] = "9x9" if grid.shape == (9, 9) and grid.margin_px[0] == SW / 10 else "other"
     size_ok = dot_image_radius(scene, grid) >= MIN_DOT_RADIUS_PX
     vis_dots = scene.visible(grid.centers, grid.radius_px) & size_ok
-    in_spec = scene.screen_fully_visible() and float(vis_dots.mean()) >= 0.9
+    in_spec = (
+        scene.screen_fully_visible()
+        and screen_margin(scene) >= SCREEN_MARGIN_PX
+        and float(vis_dots.mean()) >= 0.9
+    )
     res = SceneResult(
         seed,
         classes=classes,
