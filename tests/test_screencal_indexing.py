@@ -7,7 +7,8 @@ was refused. Growing the lattice neighbour by neighbour indexes all of them. Two
 refusals that must stay refusals: 50106 (tuning range, an occluder hides the bottom
 corners) and 55094 (held out on 2026-12-05, then looked at: a corner far off when the
 white and black captures are compared at their own exposures; at one exposure it
-calibrates).
+calibrates). 68076 (held out on 2026-12-07, then looked at): a barrel lens strong enough
+that the first step of the growth had to adapt to it.
 """
 
 from __future__ import annotations
@@ -98,3 +99,37 @@ def test_grow_lattice_follows_a_bending_grid_and_skips_a_missing_dot() -> None:
     assert len(index) == keep.sum()
     for (a, b), k in index.items():
         assert divmod(int(kept[k]), 8) == (3 + a, 3 + b)
+
+
+def test_strong_barrel_centre_indexes_every_dot_at_its_true_position() -> None:
+    # seed 68076 (held out 2026-12-07, then looked at): 640x480, k1 = -0.34 with a
+    # 334 px focal length; the middle of the picture is magnified ~1.4 x against the
+    # border corners' homography, so no blob lay within the gate of the nominal first
+    # step and the scene was refused ("found 5 of 81")
+    scene, grid, feat = detect(68076)
+    assert grid.count == 81 and feat.dots.count >= 80  # was 5
+    true_uv = scene.screen_to_image(grid.centers)
+    err = np.hypot(*(feat.dots.centers - true_uv).T)[feat.dots.found]
+    assert float(err.max()) < 1.0  # every dot found at its own true image position
+    assert_within_bound(heldout_errors(scene, feat))
+
+
+def test_grow_lattice_first_step_adapts_to_a_magnified_middle_not_to_a_diagonal() -> None:
+    # a 5 x 7 lattice with spacing (14, 8): 1.4 x the nominal (10, 5.7) the growth is
+    # given, beyond its gate of the nominal step; the first step is the nearest blob
+    # along each direction. With the start dot's right neighbour missing, the next one
+    # along the row (2.8 nominal steps) and the diagonal one (off the row) are not taken
+    j, i = np.meshgrid(np.arange(7), np.arange(5))
+    pts = np.stack([14.0 * j, 8.0 * i], axis=-1).reshape(-1, 2)
+    start = 2 * 7 + 3
+    index = _grow_lattice(pts, (10.0, 8.0 / 1.4), start)
+    assert len(index) == len(pts)
+    for (a, b), k in index.items():
+        assert divmod(int(k), 7) == (2 + a, 3 + b)
+    keep = np.ones(len(pts), bool)
+    keep[2 * 7 + 4] = False  # dot (2, 4) missing
+    kept = np.flatnonzero(keep)
+    index = _grow_lattice(pts[keep], (10.0, 8.0 / 1.4), start)
+    assert len(index) == keep.sum()  # (2, 5) .. reached around the gap, at the right index
+    for (a, b), k in index.items():
+        assert divmod(int(kept[k]), 7) == (2 + a, 3 + b)
