@@ -149,7 +149,10 @@ def _layout(k: int) -> tuple[Any, ...]:
         ca, cs, cb = 2 + 3 * chan, 3 + 3 * chan, 4 + 3 * chan
         cols = np.stack([np.zeros(k, np.int64), np.ones(k, np.int64), ca, cs, cb], axis=1)
         h_at = (cols[:, :, None] * p + cols[:, None, :]).ravel()
-        _LAYOUTS[k] = (p, lo, hi, ca, cs, cb, h_at, cols.ravel(), np.arange(p) * (p + 1))
+        parts = (lo, hi, ca, cs, cb, h_at, cols.ravel(), np.arange(p) * (p + 1))
+        for a in parts:
+            a.setflags(write=False)  # shared by every fit: copied where a fit changes one
+        _LAYOUTS[k] = (p, *parts)
     return _LAYOUTS[k]
 
 
