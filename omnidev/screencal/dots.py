@@ -409,21 +409,7 @@ def _grow_lattice(
                     if dd == 0:
                         break
             if best is None:
-                best = np.array([dj * sx, di * sy])
-                nominal = float(np.hypot(*best))
-                d = np.hypot(*(rect - (p + best)).T)
-                if float(d.min()) >= gate * nominal:
-                    rel = rect - p
-                    along = rel @ np.array([float(dj), float(di)])
-                    across = np.abs(rel @ np.array([float(di), -float(dj)]))
-                    ok = (
-                        (along >= 0.6 * nominal)
-                        & (along <= 1.6 * nominal)
-                        & (across < gate * along)
-                    )
-                    if ok.any():
-                        k = int(np.flatnonzero(ok)[np.argmin(along[ok])])
-                        best = rel[k]
+                best = _first_step(rect - p, np.array([dj * sx, di * sy]), gate)
             pred = p + best
             d = np.hypot(*(rect - pred).T)
             k = int(np.argmin(d))
@@ -432,6 +418,24 @@ def _grow_lattice(
                 used.add(k)
                 queue.append(nxt)
     return index
+
+
+def _first_step(rel: FloatArray, nominal: FloatArray, gate: float) -> FloatArray:
+    """The first step from a blob along the lattice direction of ``nominal`` (x, y),
+    ``rel`` the blobs' offsets from it (:func:`_grow_lattice`): the nominal step where a
+    blob lies within ``gate`` of it, else the offset of the nearest blob along the
+    direction 0.6-1.6 nominal steps away and off it by less than ``gate`` of that, else
+    the nominal step."""
+    length = float(np.hypot(*nominal))
+    if float(np.hypot(*(rel - nominal).T).min()) < gate * length:
+        return nominal
+    unit = nominal / length
+    along = rel @ unit
+    across = np.abs(rel @ np.array([unit[1], -unit[0]]))
+    ok = (along >= 0.6 * length) & (along <= 1.6 * length) & (across < gate * along)
+    if not ok.any():
+        return nominal
+    return np.asarray(rel[np.flatnonzero(ok)[np.argmin(along[ok])]], np.float64)
 
 
 def _assign_by_growth(
