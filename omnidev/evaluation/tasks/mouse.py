@@ -18,7 +18,11 @@ cv2.calibrateCamera would give it, and its rolling-shutter readout time), ``lens
 calibration only), ``shutter`` (the readout only), ``flow`` (the default's prediction,
 named), ``translation`` (the dissertation's prediction), ``similarity``, ``rotation``
 (the default before 2026-12-06: the camera's turn from the landmarks alone), ``affine``
-(the dissertation's cursor).
+(the dissertation's cursor), ``exact`` (no tracker: the cursor from the four landmarks'
+exact image positions of the truth, through the four-point homography; the floor of
+any tracker of the landmark centres without a lens and shutter model, set by the
+video's lens distortion and rolling shutter; only frames with all four landmarks in
+the picture get one: read its ``all4`` figures).
 Pooled per-frame figures come from per-scene sums and histograms (p95 to ~2 %).
 """
 
@@ -47,7 +51,9 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "similarity": {"predict": "similarity"},
     "rotation": {"predict": "rotation"},
     "affine": {"method": "affine"},
+    "exact": {},
 }
+EXACT = "exact"  # no tracker: see the module docstring
 CLASSES = ("all4", "predicted", "off_screen")
 # histogram of per-frame errors for pooled percentiles: log-spaced bin edges (px)
 _EDGES = np.concatenate([[0.0], np.geomspace(0.01, 1e5, 281)])
@@ -91,7 +97,7 @@ def run_video(
     t0 = time.perf_counter()
     renderer = HandheldRenderer(video)
     render_s = time.perf_counter() - t0
-    track_s = dict.fromkeys(configs, 0.0)
+    track_s = dict.fromkeys((n for n in configs if n != EXACT), 0.0)
     cursors: dict[str, list[tuple[float, float] | None]] = {n: [] for n in configs}
     truth = []
     with tempfile.TemporaryDirectory(prefix="omnidev-eval-mouse-") as tmp:
@@ -102,6 +108,8 @@ def run_video(
         truth_opts = {"camera": str(lens), "readout_ms": 1000 * video.imaging.readout_s}
         trackers = {}
         for n, o in configs.items():
+            if n == EXACT:
+                continue
             opts = {k: truth_opts[k] if v == TRUTH else v for k, v in o.items()}
             trackers[n] = open_tracker("camera-mouse", opts, layout)
         for i in range(frames):
@@ -115,6 +123,8 @@ def run_video(
                 s = trk.track(Frame(img, ts, i))
                 track_s[name] += time.perf_counter() - t2
                 cursors[name].append(None if s is None else (s.x, s.y))
+    if EXACT in configs:
+        cursors[EXACT] = exact_cursors(video, truth)
     out: dict[str, Any] = {
         "seed": seed,
         "kind": video.kind,
@@ -127,6 +137,32 @@ def run_video(
     if keep_frames:
         out["truth"] = truth
         out["cursors"] = cursors
+    return out
+
+
+def exact_cursors(
+    video: Any, truth: Sequence[Mapping[str, Any]]
+) -> list[tuple[float, float] | None]:
+    """Per frame, the normalized cursor (0..1 of the screen) the default tracker's
+    geometry gives from the four landmarks' exact image positions (``truth``'s
+    ``landmarks_uv``: distorted, each at its row's time): the screen corners from the
+    landmarks and the layout, the image centre through their homography. None unless
+    all four landmarks are in the picture (``visible``)."""
+    from omnidev.mouse.geometry import (
+        cursor_homography,
+        image_center,
+        screen_corners_from_landmarks,
+    )
+
+    centre = image_center(video.camera.width, video.camera.height)
+    out: list[tuple[float, float] | None] = []
+    for t in truth:
+        if video.kind != "normal" or not all(t["visible"]):
+            out.append(None)
+            continue
+        corners = screen_corners_from_landmarks(np.array(t["landmarks_uv"]), video.layout)
+        x, y = cursor_homography(corners, centre)
+        out.append((float(x), float(y)))
     return out
 
 
@@ -170,7 +206,8 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     res.metrics["render_ms_per_frame"] = r["render_ms_per_frame"]
     for name, e in r["errors"].items():
         pre = "" if name == "default" else f"{name}."
-        res.metrics[f"{pre}track_ms_per_frame"] = r["track_ms_per_frame"][name]
+        if name in r["track_ms_per_frame"]:
+            res.metrics[f"{pre}track_ms_per_frame"] = r["track_ms_per_frame"][name]
         for c in CLASSES:
             err = np.asarray(e.errors.get(c, []), float)
             if err.size:
@@ -221,8 +258,8 @@ def summarize(results: Sequence[SceneResult], options: Mapping[str, Any]) -> dic
     big = [r for r in normal if r.classes.get("camera") == ">=640"]
     small = [r for r in normal if r.classes.get("size") == "320x240"]
 
-    def share(rs: Sequence[SceneResult], bound: float) -> float:
-        v = [r.metrics["all4.rms"] for r in rs if "all4.rms" in r.metrics]
+    def share(rs: Sequence[SceneResult], bound: float, pre: str = "") -> float:
+        v = [r.metrics[f"{pre}all4.rms"] for r in rs if f"{pre}all4.rms" in r.metrics]
         return float(np.mean(np.asarray(v) <= bound)) if v else math.nan
 
     def false(kind: str) -> int:
@@ -259,6 +296,9 @@ def summarize(results: Sequence[SceneResult], options: Mapping[str, Any]) -> dic
         h = sum(r.counts.get(f"{pre}have_cursor", 0) for r in normal)
         compare[name]["cursor_rate"] = h / w if w else None
         compare[name]["gross_errors"] = sum(r.counts.get(f"{pre}gross_errors", 0) for r in normal)
+        compare[name]["share >=640 all4 RMS <= 2 px"] = share(big, 2.0, pre)
+        compare[name]["share 320x240 all4 RMS <= 4 px"] = share(small, 4.0, pre)
+        compare[name]["p95 >=640 all4 px"] = _pooled(big, f"{pre}all4")["p95_px"]
     return {
         "acceptance": acc,
         "videos": {
