@@ -102,3 +102,22 @@ def test_random_hand_held_views():
         false_locks += detect_landmarks(render(cam, seed=k, monitor=False), LAYOUT) is not None
     assert max(errs) < 0.5, errs
     assert false_locks == 0
+
+
+def test_side_edge_strength_follows_a_bent_border():
+    """Edge pixels on a parabola that bows 12 px outwards over a 300 px side: the straight
+    Hough window finds few of them on one line, the window bent by 12 px finds them all."""
+    from omnidev.mouse.detect import side_edge_strength
+
+    edges = np.zeros((200, 400), np.uint8)
+    p, q = np.array([50.0, 100.0]), np.array([350.0, 100.0])  # clockwise: inwards is +y
+    for x in range(50, 351):
+        u = (x - 50) / 300
+        edges[round(100 - 12 * 4 * u * (1 - u)), x] = 255
+    band = 6.0
+    shift = np.array([0.0, band])  # the window from band px outside the side, 2 band deep
+    straight, span, _ = side_edge_strength(edges, p - shift, q - shift, 2 * band)
+    bent, span_b, _ = side_edge_strength(edges, p - shift, q - shift, 2 * band, bend_px=12.0)
+    assert span == span_b
+    assert straight < 0.5 * span  # the border's middle lies outside the straight window
+    assert bent >= 0.95 * span

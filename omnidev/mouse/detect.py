@@ -128,6 +128,18 @@ class DetectParams:
         fov_range_deg: horizontal fields of view that a webcam may have.
         disc_area_range: each region's area over the landmark disc's area that the
             homography predicts there must lie in this range.
+        border_bends: with "predicted", where a side's straight border does not vote
+            (no colour step, no edge, or an edge line off the predicted corners), the
+            border bent outwards (a barrel lens) by each of these fractions of the
+            side's length at its middle (a parabola through the predicted corners;
+            negative: inwards, a pincushion lens) is tried in turn; every side bent
+            must bend the same way. () keeps the borders straight (as before
+            2026-12-07). Tuning video 225 (k1 -0.45): the border bows out 10-16 px.
+        bent_edge_fraction: a bent side votes when its edge covers this fraction of
+            its window (a straight one: ``min_edge_fraction``): the bend is one more
+            parameter to line chance edges up with (on the three-landmarks fixture's
+            textured wall a bent side of a false group reached 0.76; the true bent
+            sides of tuning video 225, 0.84-0.99).
     """
 
     threshold: int = 100
@@ -162,6 +174,8 @@ class DetectParams:
     max_rigid_error: float = 0.15
     fov_range_deg: tuple[float, float] = (30.0, 120.0)
     disc_area_range: tuple[float, float] = (0.3, 3.0)
+    border_bends: tuple[float, ...] = (0.02, 0.04, -0.02)
+    bent_edge_fraction: float = 0.8
 
 
 @dataclass(frozen=True)
@@ -471,6 +485,7 @@ def side_edge_strength(
     q: NDArray[np.float64],
     depth_px: float,
     params: DetectParams = DetectParams(),
+    bend_px: float = 0.0,
 ) -> tuple[float, float, HoughLine | None]:
     """Steps 6a-6b for one side p -> q of a clockwise quadrilateral (y down).
 
@@ -480,7 +495,9 @@ def side_edge_strength(
     ``hough_angle_deg`` of the side's direction, 1-pixel distance bins, is voted by the
     edge pixels of W; the peak is taken over two adjacent distance bins (a digital line
     is two bins wide). Returns (peak votes E_i, length of W along the side in pixels,
-    the peak's line or None when W holds no edge pixel).
+    the peak's line or None when W holds no edge pixel). ``bend_px``: W follows a
+    parabola through p and q that lies this many pixels outwards (to the side's left) at
+    the middle, and the Hough lines are straight in W's bent frame.
     """
     if not (np.isfinite(p).all() and np.isfinite(q).all()):  # a degenerate group
         return 0.0, 0.0, None
@@ -491,8 +508,9 @@ def side_edge_strength(
     t_hat = v / length
     n_hat = np.array([-t_hat[1], t_hat[0]])  # inwards for clockwise order with y down
     s0, s1 = params.end_margin * length, (1.0 - params.end_margin) * length
+    sag = abs(bend_px)
     corners = np.array(
-        [p + t_hat * s + n_hat * t for s in (s0, s1) for t in (-1.0, depth_px + 1.0)]
+        [p + t_hat * s + n_hat * t for s in (s0, s1) for t in (-1.0 - sag, depth_px + 1.0 + sag)]
     )
     h, w = edges.shape
     x0, y0 = np.floor(corners.min(axis=0)).astype(int)
@@ -504,6 +522,9 @@ def side_edge_strength(
     rel = np.column_stack([xs + x0, ys + y0]).astype(np.float64) - p
     s = rel @ t_hat
     t = rel @ n_hat
+    if bend_px:
+        u = s / length
+        t = t + bend_px * 4.0 * u * (1.0 - u)
     inside = (s >= s0) & (s <= s1) & (t >= 0.0) & (t <= depth_px)
     s, t = s[inside], t[inside]
     if s.size == 0:
@@ -595,10 +616,78 @@ def detect_landmarks(
         keep &= rigid_plane_errors(Hs, centre, focal_range) <= params.max_rigid_error
     best: Detection | None = None
     best_group: NDArray[np.intp] | None = None
+
+    def predicted_side(
+        screen: NDArray[np.float64], i: int, px_per_mm: float, bend_px: float
+    ) -> tuple[bool, float, float, HoughLine | None]:
+        """Side i of the border the group predicts (bent outwards by ``bend_px`` at its
+        middle): whether the colour steps across it, and its edge votes, window length
+        and Hough line."""
+        nonlocal faint
+        # a band around the screen border where the group puts it (the bezel's outer
+        # edge, between an overhanging card and the screen, stays out)
+        a, b = screen[i], screen[(i + 1) % 4]
+        step_px = max(2.0, params.border_band_frac * inset_mm[i] * px_per_mm)
+        # the nearest offset first: the faint map below votes only where it steps
+        near = stepped = True
+        if params.min_border_step > 0:
+            scales = sorted(params.border_step_scales)
+            near = bool(scales) and _border_step(image, a, b, scales[0] * step_px, params, bend_px)
+            stepped = near or any(
+                _border_step(image, a, b, k * step_px, params, bend_px) for k in scales[1:]
+            )
+        if not stepped:
+            return False, 0.0, 0.0, None
+        band = max(params.max_border_offset_px, params.border_band_frac * inset_mm[i] * px_per_mm)
+        v = (b - a) / max(float(np.linalg.norm(b - a)), 1e-9)
+        nrm = np.array([-v[1], v[0]])
+        e, span, line = side_edge_strength(
+            edges, a - nrm * band, b - nrm * band, 2 * band, params, bend_px
+        )
+        # the faint map only where the colour steps right at the border (on a
+        # textured wall its edges line up by chance: fixture three-landmarks)
+        if e < params.min_edge_fraction * span and params.faint_canny is not None and near:
+            if faint is None:
+                faint = edge_map(
+                    image,
+                    replace(
+                        params, canny_low=params.faint_canny[0], canny_high=params.faint_canny[1]
+                    ),
+                )
+            e, span, line = side_edge_strength(
+                faint, a - nrm * band, b - nrm * band, 2 * band, params, bend_px
+            )
+        return True, e, span, line
+
+    def off_border(
+        line: HoughLine | None, screen: NDArray[np.float64], i: int, px_per_mm: float
+    ) -> bool:
+        """Whether side i's edge line misses the predicted corners (a wrong group)."""
+        if line is None or not math.isfinite(params.max_border_offset_px):
+            return False
+        off = line.distance(screen[[i, (i + 1) % 4]])
+        tol = max(
+            params.max_border_offset_px, params.max_border_offset_frac * inset_mm[i] * px_per_mm
+        )
+        return bool(off.max() > tol)
+
+    def votes(
+        side: tuple[bool, float, float, HoughLine | None],
+        screen: NDArray[np.float64],
+        i: int,
+        px_per_mm: float,
+        fraction: float = params.min_edge_fraction,
+    ) -> bool:
+        """Whether side i steps, shows an edge over ``fraction`` of its window and the
+        edge meets the predicted corners."""
+        stepped, e, span, line = side
+        return stepped and e >= fraction * span and not off_border(line, screen, i, px_per_mm)
+
     for quad, group in zip(cq[keep], cg[keep], strict=True):
         strengths: list[float] = []
         weak = 0
         misplaced = False
+        bends: list[float] = []  # the bends the sides were found with (fraction of length)
         screen = screen_corners_from_landmarks(quad, layout)
         if not np.all(np.isfinite(screen)):
             continue
@@ -606,59 +695,31 @@ def detect_landmarks(
             p, q = quad[i], quad[(i + 1) % 4]
             px_per_mm = float(np.linalg.norm(q - p)) / side_mm[i]
             if params.border_search == "predicted":
-                # a band around the screen border where the group puts it (the bezel's
-                # outer edge, between an overhanging card and the screen, stays out)
-                a, b = screen[i], screen[(i + 1) % 4]
-                step_px = max(2.0, params.border_band_frac * inset_mm[i] * px_per_mm)
-                # the nearest offset first: the faint map below votes only where it steps
-                near = stepped = True
-                if params.min_border_step > 0:
-                    scales = sorted(params.border_step_scales)
-                    near = bool(scales) and _border_step(image, a, b, scales[0] * step_px, params)
-                    stepped = near or any(
-                        _border_step(image, a, b, k * step_px, params) for k in scales[1:]
-                    )
+                side_px = float(np.linalg.norm(screen[(i + 1) % 4] - screen[i]))
+                side = predicted_side(screen, i, px_per_mm, 0.0)
+                if not votes(side, screen, i, px_per_mm):
+                    for f in params.border_bends:  # a lens bends the border
+                        if bends and f * bends[0] < 0:
+                            continue  # every side bends the same way
+                        bent = predicted_side(screen, i, px_per_mm, f * side_px)
+                        if votes(bent, screen, i, px_per_mm, params.bent_edge_fraction):
+                            side = bent
+                            bends.append(f)
+                            break
+                stepped, e, span, line = side
                 if not stepped:
                     weak += 1  # no change of colour across the border: no vote
                     if weak > 4 - params.min_border_sides:
                         break
                     strengths.append(0.0)
                     continue
-                band = max(
-                    params.max_border_offset_px, params.border_band_frac * inset_mm[i] * px_per_mm
-                )
-                v = (b - a) / max(float(np.linalg.norm(b - a)), 1e-9)
-                nrm = np.array([-v[1], v[0]])
-                e, span, line = side_edge_strength(
-                    edges, a - nrm * band, b - nrm * band, 2 * band, params
-                )
-                # the faint map only where the colour steps right at the border (on a
-                # textured wall its edges line up by chance: fixture three-landmarks)
-                if e < params.min_edge_fraction * span and params.faint_canny is not None and near:
-                    if faint is None:
-                        faint = edge_map(
-                            image,
-                            replace(
-                                params,
-                                canny_low=params.faint_canny[0],
-                                canny_high=params.faint_canny[1],
-                            ),
-                        )
-                    e, span, line = side_edge_strength(
-                        faint, a - nrm * band, b - nrm * band, 2 * band, params
-                    )
             else:
                 depth = max(4.0, 2.0 * inset_mm[i] * px_per_mm)
                 e, span, line = side_edge_strength(edges, p, q, depth, params)
             if e < params.min_edge_fraction * span:
                 weak += 1  # no clear border here (content as dark as the bezel): no vote
-            elif line is not None and math.isfinite(params.max_border_offset_px):
-                off = line.distance(screen[[i, (i + 1) % 4]])
-                tol = max(
-                    params.max_border_offset_px,
-                    params.max_border_offset_frac * inset_mm[i] * px_per_mm,
-                )
-                misplaced = bool(off.max() > tol)
+            else:
+                misplaced = off_border(line, screen, i, px_per_mm)
             if misplaced or weak > 4 - params.min_border_sides:
                 break
             strengths.append(e)
@@ -783,13 +844,15 @@ def _border_step(
     b: NDArray[np.float64],
     offset: float,
     params: DetectParams,
+    bend_px: float = 0.0,
 ) -> bool:
     """Whether the colour steps across the segment a -> b (px) the same way along it:
     24 points (the ``end_margin`` left out at both ends) sampled ``offset`` px to both
     sides; in the channel with the largest mean difference, the mean reaches
     ``params.min_border_step`` and three quarters of the points share its sign (a
     textured wall or noise differs too, but not coherently); and the bezel side is plain
-    (its spread at most 10 grey levels + a quarter of the step)."""
+    (its spread at most 10 grey levels + a quarter of the step). ``bend_px``: the border
+    is the parabola through a and b that lies this many px outwards at the middle."""
     v = b - a
     n = float(np.hypot(*v))
     if n < 4:
@@ -797,7 +860,7 @@ def _border_step(
     t = v / n
     nrm = np.array([-t[1], t[0]])
     s = np.linspace(params.end_margin, 1 - params.end_margin, 24)[:, None]
-    pts = a + s * v
+    pts = a + s * v - (bend_px * 4.0) * (s * (1.0 - s)) * nrm
     h, w = image.shape[:2]
     img = image if image.ndim == 3 else image[..., None]
 
