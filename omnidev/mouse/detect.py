@@ -683,6 +683,25 @@ def detect_landmarks(
         stepped, e, span, line = side
         return stepped and e >= fraction * span and not off_border(line, screen, i, px_per_mm)
 
+    def straight_or_bent(
+        screen: NDArray[np.float64], i: int, px_per_mm: float, bends: list[float]
+    ) -> tuple[bool, float, float, HoughLine | None]:
+        """Side i of the predicted border as :func:`predicted_side` measures it: straight,
+        or where the straight side does not vote the first of ``params.border_bends``
+        that does (appended to ``bends``; every side of a group bends the same way)."""
+        side = predicted_side(screen, i, px_per_mm, 0.0)
+        if votes(side, screen, i, px_per_mm):
+            return side
+        side_px = float(np.linalg.norm(screen[(i + 1) % 4] - screen[i]))
+        for f in params.border_bends:  # a lens bends the border
+            if bends and f * bends[0] < 0:
+                continue
+            bent = predicted_side(screen, i, px_per_mm, f * side_px)
+            if votes(bent, screen, i, px_per_mm, params.bent_edge_fraction):
+                bends.append(f)
+                return bent
+        return side
+
     for quad, group in zip(cq[keep], cg[keep], strict=True):
         strengths: list[float] = []
         weak = 0
@@ -695,18 +714,7 @@ def detect_landmarks(
             p, q = quad[i], quad[(i + 1) % 4]
             px_per_mm = float(np.linalg.norm(q - p)) / side_mm[i]
             if params.border_search == "predicted":
-                side_px = float(np.linalg.norm(screen[(i + 1) % 4] - screen[i]))
-                side = predicted_side(screen, i, px_per_mm, 0.0)
-                if not votes(side, screen, i, px_per_mm):
-                    for f in params.border_bends:  # a lens bends the border
-                        if bends and f * bends[0] < 0:
-                            continue  # every side bends the same way
-                        bent = predicted_side(screen, i, px_per_mm, f * side_px)
-                        if votes(bent, screen, i, px_per_mm, params.bent_edge_fraction):
-                            side = bent
-                            bends.append(f)
-                            break
-                stepped, e, span, line = side
+                stepped, e, span, line = straight_or_bent(screen, i, px_per_mm, bends)
                 if not stepped:
                     weak += 1  # no change of colour across the border: no vote
                     if weak > 4 - params.min_border_sides:
