@@ -19,9 +19,10 @@ import pytest
 from omnidev.daemon.config import parse_config
 from omnidev.errors import TrackerError
 from omnidev.evaluation.framework import load_task
+from omnidev.evaluation.tasks.laser import miss_cause
 from omnidev.filters import OneEuroFilter
 from omnidev.laser.colour_spot import ColourSpotDetector, _fit_beams
-from omnidev.sim.laser_scenes import LaserScene, ref_scale, screen_mask
+from omnidev.sim.laser_scenes import LaserScene, LaserTruth, ref_scale, screen_mask
 from omnidev.sim.screen import Spot, render, screen_rig
 from omnidev.sim.screen_content import slide
 from omnidev.tracking import open_tracker
@@ -60,6 +61,16 @@ def test_sample_false_spots(sample: dict[int, dict[str, int]]) -> None:
     false = sum(c["false"] for c in sample.values())
     assert off >= 4 * 8  # the lead-in at least
     assert false == 0
+
+
+def test_sample_every_spot_frame_not_within_has_one_cause(
+    sample: dict[int, dict[str, int]],
+) -> None:
+    for counts in sample.values():
+        causes = sum(v for k, v in counts.items() if k.startswith("cause."))
+        assert causes == counts["missed"] + counts["far"]
+        far = sum(v for k, v in counts.items() if k.startswith("cause.far: "))
+        assert far == counts["far"]
 
 
 def _dark_rig_frames(n: int, *, spot: bool) -> list[np.ndarray]:
@@ -340,3 +351,40 @@ def test_tracker_method_options(tmp_path: Path) -> None:
         with pytest.raises(TrackerError, match=text) as info:
             open_tracker("laser-pointer", options, tmp_path / "absent.yml")
         assert "\n" not in str(info.value)
+
+
+def _spot_truth(u: float, v: float) -> LaserTruth:
+    return LaserTruth(1, True, (0.0, 0.0), (u, v), True, 1.5, 0.0, False)
+
+
+def test_a_missed_spot_names_why() -> None:
+    """Each missed spot frame names its cause (``omnidev eval laser``'s "by cause"):
+    a blob at the spot that failed a test names the test, a spot whose new track awaits
+    confirmation says so, a spot too faint to clip its channel is "not clipped"."""
+    frames, (u, v) = _busy_then_spot(3)
+    det = ColourSpotDetector("red", busy_gain=1000.0)  # no ring is that strong
+    assert all(det.detect(f) is None for f in frames[:9])
+    assert det.detect(frames[9]) is None
+    assert [why for box, why in det.rejected if box[0] <= v < box[1] and box[2] <= u < box[3]]
+    assert miss_cause(det, frames[9], _spot_truth(u, v), 4.0, 2, refused=False) == (
+        "rejected: busy"
+    )
+    two = _dark_rig_frames(3, spot=True)
+    det = ColourSpotDetector("red", confirm=2)
+    det.detect(two[0])
+    assert det.detect(two[1]) is None and det.unconfirmed
+    assert miss_cause(det, two[1], _spot_truth(u, v), 4.0, 2, refused=False) == "unconfirmed"
+    assert det.detect(two[2]) is not None and not det.unconfirmed
+    rig = screen_rig((640, 480), 0.1)
+    content = slide("dark", 1920, 1080, 0.0)
+    faint = [render(rig, content, frame_seed=0)]
+    faint.append(render(rig, content, spot=Spot(600.0, 500.0, "red", 6.0, 0.02), frame_seed=1))
+    det = ColourSpotDetector("red")
+    det.detect(faint[0])
+    assert det.detect(faint[1]) is None
+    up = faint[1][:, :, 2].astype(np.int16) - faint[0][:, :, 2]
+    fv, fu = np.unravel_index(np.argmax(up), up.shape)
+    assert up[fv, fu] >= 15 and faint[1][fv, fu, 2] < det.saturated  # the spot is there
+    truth = _spot_truth(float(fu), float(fv))
+    assert miss_cause(det, faint[1], truth, 4.0, 2, refused=False) == "not clipped"
+    assert miss_cause(det, faint[1], truth, 4.0, 2, refused=True) == "refused"

@@ -440,6 +440,12 @@ class ColourSpotDetector:
         self.background: NDArray[np.uint8] | None = None
         self.slide_changes = 0  # frames judged a slide change (for figures)
         self.refused = 0  # frames refused as ambiguous (for figures)
+        # the last frame's blobs that failed a test: (image box rows r0:r1, cols c0:c1,
+        # the test: "shape", "peak", "no model", "busy", "not new", "darker", "cross",
+        # "rise", "colour"), and whether a spot passed but its track is not yet
+        # confirmed (for figures: why a spot was missed)
+        self.rejected: list[tuple[tuple[int, int, int, int], str]] = []
+        self.unconfirmed = False
         self._planes: dict[int, NDArray[np.uint8]] = {}  # laser channels of the model
         self._low: dict[int, NDArray[np.uint8]] = {}  # where a clipped pixel would be new
         # where the laser channel is near clipping but the others have room to rise
@@ -473,6 +479,8 @@ class ColourSpotDetector:
         h, w = image.shape[:2]
         if self.mask is not None and self.mask.shape != (h, w):
             raise ValueError(f"mask is {self.mask.shape[1]}x{self.mask.shape[0]}, image {w}x{h}")
+        self.rejected = []
+        self.unconfirmed = False
         bg = self.background
         if bg is None or bg.shape != image.shape:
             self._start(image)  # nothing to compare with yet
@@ -493,7 +501,8 @@ class ColourSpotDetector:
             if self.busy_confirm > self.confirm and self._is_busy(spot.u, spot.v):
                 self._need = self.busy_confirm
         self._frame += 1
-        return spot if self._run >= self._need else None
+        self.unconfirmed = self._run < self._need
+        return None if self.unconfirmed else spot
 
     def _detect(self, image: NDArray[np.uint8], bg: NDArray[np.uint8]) -> LaserSpot | None:
         k = self.step
@@ -875,9 +884,9 @@ class ColourSpotDetector:
             return None, None
         ibox = (box[0] + v0, box[1] + v0, box[2] + u0, box[3] + u0)
         if sel is None:
-            return None, ibox
+            return self._reject(ibox, "shape")
         if int(lc[sel].max()) < self._top.get(c, 0) - self.peak_margin:
-            return None, ibox  # a spot drives its channel to the highest level seen
+            return self._reject(ibox, "peak")  # a spot drives its channel to the top
         # every test below looks at most r + 7 px beyond the blob (the ring's outer band,
         # the fits' reach, cut here): measure in that part of the window only
         m = math.ceil(max(4.0, math.sqrt(np.count_nonzero(sel) / math.pi))) + 7
@@ -890,14 +899,14 @@ class ColourSpotDetector:
         last = self._last
         near = last is not None and math.hypot(last.u - su, last.v - sv) <= self.track_px
         if bg is None and not near:
-            return None, ibox
+            return self._reject(ibox, "no model")
         busy = bg is not None and self._is_busy(su, sv)
         if busy and not near:
             # content moves here: only a blob far more of the laser's colour than its
             # surroundings (its ring) starts a track
             g = self._ring_gain(win, sel, c)
             if g is None or g < self.busy_gain:
-                return None, ibox
+                return self._reject(ibox, "busy")
         bright = False  # over content near clipping in the laser channel
         if bg is not None:
             # new: enough of the blob was not clipped in the content model
@@ -908,13 +917,13 @@ class ColourSpotDetector:
                     or busy
                     or not self._bright_new(win, bg[v0:v1, u0:u1], sel, c)
                 ):
-                    return None, ibox
+                    return self._reject(ibox, "not new")
                 bright = True
         model = None if bg is None else self._model_window(bg, v0, v1, u0, u1)
-        if model is not None and not (
-            self._adds_light(win, model, sel) and self._cross_rise(win, model, sel, c)
-        ):
-            return None, ibox
+        if model is not None and not self._adds_light(win, model, sel):
+            return self._reject(ibox, "darker")
+        if model is not None and not self._cross_rise(win, model, sel, c):
+            return self._reject(ibox, "cross")
         if model is not None and self.min_rise > 0:
             disc = cv2.dilate(sel.view(np.uint8), self._k5).view(bool)
             if bright:  # the laser channel had no room: its light in the others
@@ -922,10 +931,10 @@ class ColourSpotDetector:
             else:
                 up = win[:, :, c][disc].astype(np.int16) - model[:, :, c][disc]
             if float(up.mean()) < self.min_rise:
-                return None, ibox
+                return self._reject(ibox, "rise")
         gain = self._colour(win, None if bg is None or busy else bg[v0:v1, u0:u1], sel, c)
         if gain is None:
-            return None, ibox
+            return self._reject(ibox, "colour")
         region = cv2.dilate(sel.view(np.uint8), self._k3).view(bool)
         lo_edge = self.saturated - self.soft
         wgt = np.clip((lc[region].astype(np.float64) - lo_edge) / self.soft, 0, 1)
@@ -951,6 +960,13 @@ class ColourSpotDetector:
             "red" if c == 2 else "green",
         )
         return spot, ibox
+
+    def _reject(
+        self, box: tuple[int, int, int, int], why: str
+    ) -> tuple[None, tuple[int, int, int, int]]:
+        """Note a blob that failed test ``why`` (:attr:`rejected`); (None, its box)."""
+        self.rejected.append((box, why))
+        return None, box
 
     def _bright_new(
         self, win: NDArray[np.uint8], ref: NDArray[np.uint8], sel: NDArray[np.bool_], c: int

@@ -22,7 +22,12 @@ Counts (pooled by summing): ``spot``, ``hit``, ``far``, ``missed``, ``off``,
 ``false``, ``hidden``, ``refused`` (frames the detector declined as ambiguous),
 ``delivered`` (spot frames whose spot the codec left visible, see
 :class:`~omnidev.sim.laser_scenes.LaserTruth`) and ``delivered.hit`` (hits among
-them). The acceptance is judged on every spot frame; the rate among the delivered
+them), and per spot frame not within tolerance its cause, ``cause.NAME``
+(:func:`miss_cause`): ``far: position`` (a spot found within 3 camera px or the spot's
+size of the truth, placed beyond the tolerance), ``far: elsewhere``, ``refused``,
+``unconfirmed``, ``rejected: TEST`` (a blob at the spot failed the colour detector's
+TEST), ``clipped, not measured`` and ``not clipped`` (no pixel near the spot clips the
+laser channel). The acceptance is judged on every spot frame; the rate among the delivered
 ones (``detected_within_delivered``) is reported beside it: it separates what the
 detector misses from what no detector could find in the encoded frames.
 Metrics per scene: ``miss_rate`` (1 - hits / spot frames), ``false_rate``,
@@ -151,11 +156,13 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     ferr: dict[str, list[float]] = {n: [] for n in FILTERS}
     log: list[dict[str, Any]] = []
     sw, sh = scene.screen_px
+    c_laser = 2 if sc.laser.colour == "red" else 1
     frames = _frames(sc, str(options.get("cache", "")))
     for img, truth in frames:
         before = getattr(det, "refused", 0)
         s = det.detect(img)
-        counts["refused"] += getattr(det, "refused", 0) - before
+        refused = getattr(det, "refused", 0) > before
+        counts["refused"] += refused
         t = truth.index / sc.laser.fps
         found = None
         xy = None
@@ -190,6 +197,9 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         counts["delivered"] += truth.delivered
         if xy is None or not np.all(np.isfinite(xy)):
             counts["missed"] += 1
+            cause = miss_cause(det, img, truth, sc.laser.spot_px, c_laser, refused=refused)
+            counts[f"cause.{cause}"] = counts.get(f"cause.{cause}", 0) + 1
+            entry["cause"] = cause
             for f in filters.values():
                 f.reset()
             continue
@@ -197,6 +207,12 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         entry["error_px"] = e
         errors.append(e)
         counts["hit" if e <= truth.tol_px else "far"] += 1
+        if e > truth.tol_px:
+            assert found is not None and truth.uv is not None
+            d = math.hypot(found[0] - truth.uv[0], found[1] - truth.uv[1])
+            cause = "far: position" if d <= max(3.0, sc.laser.spot_px) else "far: elsewhere"
+            counts[f"cause.{cause}"] = counts.get(f"cause.{cause}", 0) + 1
+            entry["cause"] = cause
         counts["delivered.hit"] += truth.delivered and e <= truth.tol_px
         for name, f in filters.items():
             fx = f(t, [xy[0] / (sw - 1), xy[1] / (sh - 1)])
@@ -219,6 +235,39 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     if outdir is not None:
         _write(outdir, sc, log, [img for img, _ in frames])
     return res
+
+
+def miss_cause(
+    det: ColourSpotDetector | SpotDetector,
+    img: np.ndarray,
+    truth: LaserTruth,
+    spot_px: float,
+    c: int,
+    *,
+    refused: bool,
+) -> str:
+    """Why the detector found no spot on a spot frame (for figures):
+    the frame refused as ambiguous, a spot whose track awaits confirmation, a blob at
+    the spot that failed a test (``rejected: TEST``, the colour detector's
+    :attr:`~omnidev.laser.colour_spot.ColourSpotDetector.rejected`), a pixel clipped
+    in the laser channel ``c`` near the spot but no blob measured there, or none."""
+    if refused:
+        return "refused"
+    if getattr(det, "unconfirmed", False):
+        return "unconfirmed"
+    assert truth.uv is not None
+    u, v = truth.uv
+    for (r0, r1, c0, c1), why in getattr(det, "rejected", []):
+        if r0 - 2 <= v < r1 + 2 and c0 - 2 <= u < c1 + 2:
+            return f"rejected: {why}"
+    h, w = img.shape[:2]
+    r = max(2.0, 0.5 * spot_px + 1.0)
+    v0, v1 = max(0, math.floor(v - r)), min(h, math.ceil(v + r) + 1)
+    u0, u1 = max(0, math.floor(u - r)), min(w, math.ceil(u + r) + 1)
+    level = getattr(det, "saturated", 250)
+    if v0 < v1 and u0 < u1 and int(img[v0:v1, u0:u1, c].max()) >= level:
+        return "clipped, not measured"
+    return "not clipped"
 
 
 def _frames(sc: LaserScene, cache: str) -> list[tuple[np.ndarray, LaserTruth]]:
@@ -334,6 +383,16 @@ def summarize(results: Sequence[SceneResult], options: Mapping[str, Any]) -> dic
         if osum["spot"]
         else "no spot frames compared (--opt compare=true runs it)"
     )
+    causes: dict[str, int] = defaultdict(int)
+    for r in ok:
+        for key, v in r.counts.items():
+            if key.startswith("cause."):
+                causes[key[6:]] += v
+    spots = pooled["spot_frames"]
+    by_cause = {
+        k: f"{v} ({v / spots:.1%} of the spot frames)"
+        for k, v in sorted(causes.items(), key=lambda kv: -kv[1])
+    }
     worst = sorted(ok, key=lambda r: -r.metrics.get("miss_rate", 0.0))[:8]
     rate, frate = pooled["detected_within"], pooled["false_rate"]
     return {
@@ -359,6 +418,7 @@ def summarize(results: Sequence[SceneResult], options: Mapping[str, Any]) -> dic
         ],
         "pooled": pooled,
         "other method": other,
+        "spot frames not within tolerance, by cause": by_cause,
         "classes": classes,
         "largest error, screen px (max over scenes)": float(np.nanmax(errs)) if ok else math.nan,
         "worst scenes (seed: missed+far / spot frames, false)": {
