@@ -9,6 +9,7 @@ the kind and hands the file to the registered unwarper.
 from __future__ import annotations
 
 import gzip
+import math
 import re
 import zlib
 from collections.abc import Iterator, Mapping
@@ -113,8 +114,52 @@ def read_real(fs: cv2.FileStorage, path: Path, key: str) -> float:
     return value
 
 
+_DT = re.compile(r"([1-9][0-9]*)?[ucwsifdh]")
+
+
+def matrix_node_problem(node: cv2.FileNode) -> str | None:
+    """What keeps an ``opencv-matrix`` (``rows``, ``cols``) or ``opencv-nd-matrix``
+    (``sizes``) map node from being a whole matrix ("no cols", "holds 3 values, not 1 x
+    2 of d"), or None. Checked before ``FileNode.mat()``, which on a matrix without
+    ``cols`` can corrupt the process's heap (a crash later, in a forked child: fuzz seed
+    49) rather than raise."""
+    nd = not node.getNode("sizes").empty()
+    need = ("sizes", "dt", "data") if nd else ("rows", "cols", "dt", "data")
+    parts = {k: node.getNode(k) for k in need}
+    missing = [k for k, n in parts.items() if n.empty()]
+    if missing:
+        return f"no {', '.join(missing)}"
+    if nd:
+        sizes = parts["sizes"]
+        items = [sizes.at(i) for i in range(sizes.size())] if sizes.isSeq() else [sizes]
+        if not all(n.isInt() for n in items):
+            return "sizes are not whole numbers"
+        dims = [int(n.real()) for n in items]
+    elif parts["rows"].isInt() and parts["cols"].isInt():
+        dims = [int(parts["rows"].real()), int(parts["cols"].real())]
+    else:
+        return "rows and cols are not whole numbers"
+    dt = parts["dt"].string() if parts["dt"].isString() else ""
+    m = _DT.fullmatch(dt)
+    if m is None:
+        return f"element type dt {dt!r} is not one OpenCV reads (d, f, i, u, 3d, ...)"
+    data = parts["data"]
+    have = data.size() if data.isSeq() else (0 if data.isNone() else 1)  # XML: <data></data>
+    if any(d < 0 for d in dims) or have != math.prod(dims) * int(m.group(1) or 1):
+        return f"holds {have} values, not {' x '.join(map(str, dims))} of {dt}"
+    return None
+
+
 def read_mat(fs: cv2.FileStorage, path: Path, key: str) -> np.ndarray[Any, Any]:
     node = fs.getNode(key)
+    if (
+        not node.empty()
+        and node.isMap()
+        and {"rows", "cols", "sizes", "dt", "data"} & set(node.keys())
+    ):
+        problem = matrix_node_problem(node)
+        if problem is not None:
+            raise CalibrationError(f"{path}: matrix key {key!r} is incomplete ({problem})")
     try:
         mat = None if node.empty() else node.mat()
     except cv2.error:  # e.g. an opencv-matrix node cut off before its data

@@ -714,17 +714,22 @@ def read_json(path: Path) -> Any:
     return loads_json(read_text(path), path, "calibration file", CalibrationError)
 
 
-def _node_value(node: cv2.FileNode) -> Any:
+def _node_value(node: cv2.FileNode, path: Path, key: str) -> Any:
     """A FileNode as Python: dict, list, ndarray (matrices), float/int or str."""
     if node.isMap():
         keys = node.keys()
-        if {"rows", "cols", "dt", "data"} <= set(keys):
+        if {"rows", "dt", "data"} <= set(keys):  # an opencv-matrix (cols may be cut off)
+            from omnidev.calibfile import matrix_node_problem
+
+            problem = matrix_node_problem(node)
+            if problem is not None:
+                raise CalibrationError(f"{path}: matrix key {key!r} is incomplete ({problem})")
             mat = node.mat()
             if mat is not None:
                 return np.asarray(mat, np.float64)
-        return {k: _node_value(node.getNode(k)) for k in keys}
+        return {k: _node_value(node.getNode(k), path, k) for k in keys}
     if node.isSeq():
-        return [_node_value(node.at(i)) for i in range(node.size())]
+        return [_node_value(node.at(i), path, key) for i in range(node.size())]
     if node.isInt():
         return int(node.real())
     if node.isReal():
@@ -741,7 +746,7 @@ def read_storage(path: Path) -> dict[str, Any]:
     with open_storage(Path(path)) as fs:
         root = fs.root()
         try:
-            return {k: _node_value(root.getNode(k)) for k in root.keys()}  # noqa: SIM118 (a FileNode)
+            return {k: _node_value(root.getNode(k), path, k) for k in root.keys()}  # noqa: SIM118 (a FileNode)
         except cv2.error as exc:
             msg = str(exc).split("error:", 1)[-1].strip().splitlines()[0]
             raise CalibrationError(f"{path}: not a readable OpenCV FileStorage ({msg})") from None

@@ -170,3 +170,34 @@ def test_random_mutations(target, pool: ServerPool, seeds: Seeds, workdir: Path,
 
 def pytest_terminal_summary_text() -> str:
     return summary(REPORT) if REPORT else ""
+
+
+def test_matrix_cut_before_its_cols(pool: ServerPool, seeds: Seeds, workdir: Path) -> None:
+    """An opencv-matrix without ``cols`` (a random edit of fuzz seed 49): cv2's
+    ``FileNode.mat()`` on it corrupted the heap of the forked child reading it, which
+    died in ``free()`` (whether it dies depends on the heap's layout: in this test's
+    server it did not). Now the header is checked before OpenCV reads the matrix, and
+    the error says what is missing; so is a data count that does not fit the header."""
+    seed = seeds.text("cam_unified.yml").decode()
+    head, rest = seed.split("radial_coeffs: !!opencv-matrix\n", 1)
+    rows, cols, rest = rest.split("\n", 2)
+    assert rows.strip() == "rows: 1" and cols.strip() == "cols: 2", (rows, cols)
+    argv = ["unwarp", f"{seeds.root}/omni.png", "--camera", "in.yml", "--view", "panorama:64x16"]
+    cases = [
+        Case(
+            "unwarp",
+            f"pano-table: radial_coeffs {what}",
+            [*argv, "-o", "out.png"],
+            {"in.yml": (head + "radial_coeffs: !!opencv-matrix\n" + text + rest).encode()},
+        )
+        for what, text in (
+            ("without cols", "   rows:2\n"),
+            ("with 3 values for 1 x 2", "   rows: 1\n   cols: 3\n"),
+        )
+    ]
+    outcomes = run_cases(pool, cases, workdir / "run")
+    REPORT.extend(outcomes)
+    for o, needle in zip(outcomes, ("(no cols)", "holds 2 values, not 1 x 3 of d"), strict=True):
+        assert o.cls == "clean", o.describe()
+        assert "in.yml: matrix key 'radial_coeffs' is incomplete" in o.stderr, o.stderr
+        assert needle in o.stderr, o.stderr
