@@ -114,6 +114,7 @@ def read_real(fs: cv2.FileStorage, path: Path, key: str) -> float:
     return value
 
 
+_MATRIX_KEYS = ("rows", "cols", "sizes", "dt", "data")
 _DT = re.compile(r"([1-9][0-9]*)?[ucwsifdh]")
 
 
@@ -139,7 +140,10 @@ def matrix_node_problem(node: cv2.FileNode) -> str | None:
         dims = [int(parts["rows"].real()), int(parts["cols"].real())]
     else:
         return "rows and cols are not whole numbers"
-    dt = parts["dt"].string() if parts["dt"].isString() else ""
+    try:
+        dt = parts["dt"].string() if parts["dt"].isString() else ""
+    except UnicodeDecodeError:  # bytes that make no UTF-8 text
+        dt = "?"
     m = _DT.fullmatch(dt)
     if m is None:
         return f"element type dt {dt!r} is not one OpenCV reads (d, f, i, u, 3d, ...)"
@@ -152,11 +156,8 @@ def matrix_node_problem(node: cv2.FileNode) -> str | None:
 
 def read_mat(fs: cv2.FileStorage, path: Path, key: str) -> np.ndarray[Any, Any]:
     node = fs.getNode(key)
-    if (
-        not node.empty()
-        and node.isMap()
-        and {"rows", "cols", "sizes", "dt", "data"} & set(node.keys())
-    ):
+    # (FileNode.keys() decodes every key as UTF-8: a damaged key name would raise there)
+    if node.isMap() and any(not node.getNode(k).empty() for k in _MATRIX_KEYS):
         problem = matrix_node_problem(node)
         if problem is not None:
             raise CalibrationError(f"{path}: matrix key {key!r} is incomplete ({problem})")
