@@ -336,3 +336,32 @@ def test_a_strong_barrel_lens_bends_the_border_and_detection_follows() -> None:
         true_uv = np.array(r.truth(i)["landmarks_uv"])
         assert float(np.hypot(*(found.centers - true_uv).T).max()) < 1.0, f"frame {i}"
     assert found_frames >= len(frames) - 2, (found_frames, len(frames))  # measured 5 of 7
+
+
+def test_shares_count_a_video_without_a_cursor_beyond_the_bound() -> None:
+    """The acceptance's shares of videos within 2 px (>= 640) / 4 px (320x240) see only
+    videos with a cursor on frames with all four landmarks visible; the shares beside
+    them count a video with such frames but no cursor as beyond the bound."""
+    from omnidev.evaluation.framework import SceneResult
+    from omnidev.evaluation.tasks.mouse import summarize
+
+    def video(seed: int, size: str, rms: float | None) -> SceneResult:
+        camera = ">=640" if size != "320x240" else size
+        r = SceneResult(seed, classes={"kind": "normal", "size": size, "camera": camera})
+        r.counts["all4.frames"] = 10
+        if rms is not None:
+            r.metrics["all4.rms"] = rms
+        return r
+
+    rs = [video(1, "640x480", 1.0), video(2, "640x480", 3.0), video(3, "1280x720", None),
+          video(4, "320x240", 2.0), video(5, "320x240", None)]  # fmt: skip
+    s = summarize(rs, {"configs": "default"})
+    names = {a["name"]: a["value"] for a in s["acceptance"]}
+    assert names["cameras >= 640 wide, all four visible: share of videos with RMS <= 2 px"] == 0.5
+    assert names["320x240, all four visible: share of videos with RMS <= 4 px"] == 1.0
+    strict = s["shares, a video without a cursor counted beyond"]
+    assert strict[">=640 all4 RMS <= 2 px"] == pytest.approx(1 / 3)
+    assert strict["320x240 all4 RMS <= 4 px"] == 0.5
+    assert strict["videos >=640 / 320x240 with all four visible but no cursor"] == "1 / 1"
+    cfg = s["configs (same frames)"]["default"]
+    assert cfg["share >=640 all4 RMS <= 2 px, no cursor counted beyond"] == pytest.approx(1 / 3)
