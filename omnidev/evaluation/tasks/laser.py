@@ -23,13 +23,14 @@ Counts (pooled by summing): ``spot``, ``hit``, ``far``, ``missed``, ``off``,
 ``delivered`` (spot frames whose spot the codec left visible, see
 :class:`~omnidev.sim.laser_scenes.LaserTruth`) and ``delivered.hit`` (hits among
 them), and per spot frame not within tolerance its cause, ``cause.NAME``
-(:func:`miss_cause`): ``far: position`` (a spot found within 3 camera px or the spot's
-size of the truth, placed beyond the tolerance), ``far: elsewhere``, ``refused``,
-``unconfirmed``, ``rejected: TEST`` (a blob at the spot failed the colour detector's
-TEST), ``clipped, not measured`` and ``not clipped`` (no pixel near the spot clips the
-laser channel). The acceptance is judged on every spot frame; the rate among the delivered
-ones (``detected_within_delivered``) is reported beside it: it separates what the
-detector misses from what no detector could find in the encoded frames.
+(:func:`far_cause`, :func:`miss_cause`): ``far: position`` (a spot found within 3
+camera px or the spot's size of the truth, placed beyond the tolerance), ``far:
+elsewhere``, ``refused``, ``unconfirmed``, ``rejected: TEST`` (a blob at the spot failed
+the colour detector's TEST), ``clipped, not measured`` and ``not clipped`` (no pixel
+near the spot clips the laser channel). The acceptance is judged on every spot
+frame; the rate among the delivered ones (``detected_within_delivered``) is reported
+beside it: it separates what the detector misses from what no detector could find in
+the encoded frames.
 Metrics per scene: ``miss_rate`` (1 - hits / spot frames), ``false_rate``,
 ``err.rms``, ``err.p95``, ``err.max`` (screen px, frames with a spot found),
 and the filtered positions' RMS against the truth for each filter of
@@ -197,9 +198,11 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         counts["delivered"] += truth.delivered
         if xy is None or not np.all(np.isfinite(xy)):
             counts["missed"] += 1
-            cause = miss_cause(det, img, truth, sc.laser.spot_px, c_laser, refused=refused)
-            counts[f"cause.{cause}"] = counts.get(f"cause.{cause}", 0) + 1
-            entry["cause"] = cause
+            _count_cause(
+                counts,
+                entry,
+                miss_cause(det, img, truth, sc.laser.spot_px, c_laser, refused=refused),
+            )
             for f in filters.values():
                 f.reset()
             continue
@@ -208,11 +211,8 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         errors.append(e)
         counts["hit" if e <= truth.tol_px else "far"] += 1
         if e > truth.tol_px:
-            assert found is not None and truth.uv is not None
-            d = math.hypot(found[0] - truth.uv[0], found[1] - truth.uv[1])
-            cause = "far: position" if d <= max(3.0, sc.laser.spot_px) else "far: elsewhere"
-            counts[f"cause.{cause}"] = counts.get(f"cause.{cause}", 0) + 1
-            entry["cause"] = cause
+            assert found is not None
+            _count_cause(counts, entry, far_cause(found, truth, sc.laser.spot_px))
         counts["delivered.hit"] += truth.delivered and e <= truth.tol_px
         for name, f in filters.items():
             fx = f(t, [xy[0] / (sw - 1), xy[1] / (sh - 1)])
@@ -235,6 +235,19 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     if outdir is not None:
         _write(outdir, sc, log, [img for img, _ in frames])
     return res
+
+
+def _count_cause(counts: dict[str, int], entry: dict[str, Any], cause: str) -> None:
+    counts[f"cause.{cause}"] = counts.get(f"cause.{cause}", 0) + 1
+    entry["cause"] = cause
+
+
+def far_cause(found: tuple[float, float], truth: LaserTruth, spot_px: float) -> str:
+    """A spot found beyond the tolerance: ``far: position`` within 3 camera px (or the
+    spot's size ``spot_px``) of the true one (image px), else ``far: elsewhere``."""
+    assert truth.uv is not None
+    d = math.hypot(found[0] - truth.uv[0], found[1] - truth.uv[1])
+    return "far: position" if d <= max(3.0, spot_px) else "far: elsewhere"
 
 
 def miss_cause(
