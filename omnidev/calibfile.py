@@ -154,13 +154,19 @@ def matrix_node_problem(node: cv2.FileNode) -> str | None:
     return None
 
 
-def read_mat(fs: cv2.FileStorage, path: Path, key: str) -> np.ndarray[Any, Any]:
-    node = fs.getNode(key)
+def check_matrix_node(node: cv2.FileNode, path: Path, key: str) -> None:
+    """Raise where map node ``key`` has a matrix's keys but is no whole matrix
+    (:func:`matrix_node_problem`); call it before ``node.mat()``."""
     # (FileNode.keys() decodes every key as UTF-8: a damaged key name would raise there)
     if node.isMap() and any(not node.getNode(k).empty() for k in _MATRIX_KEYS):
         problem = matrix_node_problem(node)
         if problem is not None:
             raise CalibrationError(f"{path}: matrix key {key!r} is incomplete ({problem})")
+
+
+def read_mat(fs: cv2.FileStorage, path: Path, key: str) -> np.ndarray[Any, Any]:
+    node = fs.getNode(key)
+    check_matrix_node(node, path, key)
     try:
         mat = None if node.empty() else node.mat()
     except cv2.error:  # e.g. an opencv-matrix node cut off before its data

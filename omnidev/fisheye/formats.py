@@ -719,11 +719,9 @@ def _node_value(node: cv2.FileNode, path: Path, key: str) -> Any:
     if node.isMap():
         keys = node.keys()
         if {"rows", "dt", "data"} <= set(keys):  # an opencv-matrix (cols may be cut off)
-            from omnidev.calibfile import matrix_node_problem
+            from omnidev.calibfile import check_matrix_node
 
-            problem = matrix_node_problem(node)
-            if problem is not None:
-                raise CalibrationError(f"{path}: matrix key {key!r} is incomplete ({problem})")
+            check_matrix_node(node, path, key)
             mat = node.mat()
             if mat is not None:
                 return np.asarray(mat, np.float64)
