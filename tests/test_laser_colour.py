@@ -19,7 +19,7 @@ import pytest
 from omnidev.daemon.config import parse_config
 from omnidev.errors import TrackerError
 from omnidev.evaluation.framework import load_task
-from omnidev.evaluation.tasks.laser import miss_cause
+from omnidev.evaluation.tasks.laser import miss_cause, on_moving_content
 from omnidev.filters import OneEuroFilter
 from omnidev.laser.colour_spot import ColourSpotDetector, _fit_beams
 from omnidev.sim.laser_scenes import LaserScene, LaserTruth, ref_scale, screen_mask
@@ -71,6 +71,22 @@ def test_sample_every_spot_frame_not_within_has_one_cause(
         assert causes == counts["missed"] + counts["far"]
         far = sum(v for k, v in counts.items() if k.startswith("cause.far: "))
         assert far == counts["far"]
+        assert counts["false.moving"] + counts["false.still"] == counts["false"]
+
+
+def test_false_spots_on_moving_content_are_told_apart() -> None:
+    sc = LaserScene(700024, frames=30)  # a scene with a video window and a drifting blob
+    boxes = sc.moving_boxes(20)
+    (vx0, vy0, vx1, vy1), (dx0, dy0, dx1, dy1) = boxes
+    assert (vx1 - vx0, vy1 - vy0) == (461, 388)  # the video window, screen px
+    assert dx1 - dx0 == dy1 - dy0 < 20  # the drifting blob
+    assert sc.moving_boxes(0)[1] != boxes[1]  # it drifts
+    assert on_moving_content(sc, 20, np.array([0.5 * (vx0 + vx1), 0.5 * (vy0 + vy1)]))
+    assert on_moving_content(sc, 20, np.array([vx1 + 15.0, vy0]))  # within 1 % of 1920 px
+    assert not on_moving_content(sc, 20, np.array([vx1 + 25.0, vy0]))
+    assert on_moving_content(sc, 20, np.array([0.5 * (dx0 + dx1), 0.5 * (dy0 + dy1)]))
+    assert not on_moving_content(sc, 0, np.array([0.5 * (dx0 + dx1), 0.5 * (dy0 + dy1)]))
+    assert not on_moving_content(LaserScene(700004, frames=30), 20, np.array([960.0, 540.0]))
 
 
 def _dark_rig_frames(n: int, *, spot: bool) -> list[np.ndarray]:

@@ -325,6 +325,7 @@ class LaserScene:
             t += float(rng.uniform(1.0, 4.0))
         self._changes = np.array(changes)
         self._slide_seeds = [int(x) for x in rng.integers(0, 2**31, len(changes))]
+        self._slides: dict[int, LaserSlide] = {}  # for moving_boxes
 
     def classes(self) -> dict[str, str]:
         """The scene's class in each reported axis (issue 12's five, and more)."""
@@ -346,6 +347,20 @@ class LaserScene:
 
     def slide_at(self, t: float) -> int:
         return int(np.searchsorted(self._changes, t, side="right")) - 1
+
+    def moving_boxes(self, i: int) -> list[tuple[int, int, int, int]]:
+        """Screen boxes (x0, y0, x1, y1), screen px, exclusive ends, where the content
+        shown on frame ``i`` moves from frame to frame: the video window (discs of the
+        laser's colour among others move in it) and the drifting blob."""
+        t = i / self.laser.fps
+        which = self.slide_at(t)
+        slide = self._slides.get(which)
+        if slide is None:
+            p = self.laser
+            SW, SH = self.scene.screen_px
+            slide = LaserSlide(p.slide_class, SW, SH, p.colour, self._slide_seeds[which], p.video)
+            self._slides = {which: slide}  # frames ask in order: keep the last slide only
+        return slide.changed_boxes(t)
 
     def _row_mid(self, v: float) -> float:
         """Offset (s) of the middle of row ``v``'s exposure from the frame's time."""

@@ -19,7 +19,10 @@ lies on content that already clips the laser channel, or off the picture) are
 counted apart (``hidden``) and judged neither way.
 
 Counts (pooled by summing): ``spot``, ``hit``, ``far``, ``missed``, ``off``,
-``false``, ``hidden``, ``refused`` (frames the detector declined as ambiguous),
+``false``, ``false.moving`` and ``false.still`` (false spots on content that moves
+from frame to frame, the video window and the drifting blob, where the slides move
+discs of the laser's colour, and on the rest: :func:`on_moving_content`), ``hidden``,
+``refused`` (frames the detector declined as ambiguous),
 ``delivered`` (spot frames whose spot the codec left visible, see
 :class:`~omnidev.sim.laser_scenes.LaserTruth`) and ``delivered.hit`` (hits among
 them), and per spot frame not within tolerance its cause, ``cause.NAME``
@@ -89,9 +92,12 @@ _DETECTOR_OPTIONS = (
     "search_first",
 )  # fmt: skip
 _COUNTS = (
-    "spot", "hit", "far", "missed", "off", "false", "hidden", "refused", "delivered",
-    "delivered.hit",
+    "spot", "hit", "far", "missed", "off", "false", "false.moving", "false.still", "hidden",
+    "refused", "delivered", "delivered.hit",
 )  # fmt: skip
+# how far (a fraction of the screen's width) round a box of moving content a false spot
+# still counts as on it
+MOVING_MARGIN = 0.01
 
 
 def make_detector(
@@ -186,6 +192,10 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
         if not truth.on:
             counts["off"] += 1
             counts["false"] += s is not None
+            if xy is not None:
+                moving = on_moving_content(sc, truth.index, xy)
+                counts["false.moving" if moving else "false.still"] += 1
+                entry["false_on"] = "moving" if moving else "still"
             for f in filters.values():
                 f.reset()
             continue
@@ -235,6 +245,17 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     if outdir is not None:
         _write(outdir, sc, log, [img for img, _ in frames])
     return res
+
+
+def on_moving_content(sc: LaserScene, index: int, xy: np.ndarray) -> bool:
+    """Whether screen point ``xy`` (screen px) lies on content that moves on frame
+    ``index`` (the video window, the drifting blob: :meth:`LaserScene.moving_boxes`),
+    within :data:`MOVING_MARGIN` of the screen's width."""
+    m = MOVING_MARGIN * sc.scene.screen_px[0]
+    x, y = float(xy[0]), float(xy[1])
+    return any(
+        x0 - m <= x <= x1 + m and y0 - m <= y <= y1 + m for x0, y0, x1, y1 in sc.moving_boxes(index)
+    )
 
 
 def _count_cause(counts: dict[str, int], entry: dict[str, Any], cause: str) -> None:
@@ -355,6 +376,8 @@ def _rates(rs: Sequence[SceneResult]) -> dict[str, Any]:
         "off_frames": c["off"],
         "false_spots": c["false"],
         "false_rate": c["false"] / c["off"] if c["off"] else math.nan,
+        "false_on_moving_content": c["false.moving"],
+        "false_rate_on_still_content": c["false.still"] / c["off"] if c["off"] else math.nan,
         "hidden": c["hidden"],
         "delivered_frames": c["delivered"],
         "detected_within_delivered": (
