@@ -80,9 +80,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from omnidev.laser.spot import COLOURS, LaserSpot
+from omnidev.laser.spot import COLOURS, LASER_CHANNEL, LaserSpot
 
-_CHANNEL = {"red": 2, "green": 1}
 _BLOCK = 16  # full-resolution px: the busy map's block size
 # grey levels below ``saturated`` the model must be for a pixel to be new (default of
 # ``new_margin``). With 2026-12-02's tests, 30 (tuning 1000-1039: 51.2 %, 34 false;
@@ -369,7 +368,7 @@ class ColourSpotDetector:
                 "need 0 < change_fraction <= 1, bands >= 1, busy_frames >= 0, track_px > 0"
             )
         self.colour = colour
-        self.channels = (2, 1) if colour == "any" else (_CHANNEL[colour],)
+        self.channels = (2, 1) if colour == "any" else (LASER_CHANNEL[colour],)
         self.mask = None if mask is None else np.ascontiguousarray(mask, dtype=bool)
         self.step = step
         self.saturated = saturated

@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 COLOURS = ("red", "green", "any")
-_CHANNEL = {"red": 2, "green": 1}  # BGR channel index of each laser colour
+LASER_CHANNEL = {"red": 2, "green": 1}  # BGR channel index of each laser colour
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,7 +133,7 @@ class SpotDetector:
         if not 0 < change_fraction <= 1 or bands < 1:
             raise ValueError("need 0 < change_fraction <= 1 and bands >= 1")
         self.colour = colour
-        self.channels = (2, 1) if colour == "any" else (_CHANNEL[colour],)
+        self.channels = (2, 1) if colour == "any" else (LASER_CHANNEL[colour],)
         self.mask = None if mask is None else np.ascontiguousarray(mask, dtype=bool)
         self.step = step
         self.rise = rise

@@ -65,7 +65,7 @@ from omnidev.sim.screen_scenes import ScreenScene, _expose, draw_scene, renderer
 FloatArray = NDArray[np.float64]
 LOOKS = ("white-core", "colour-only", "bloom")
 COLOURS = ("red", "green")
-_LASER_CH = {"red": 2, "green": 1}  # BGR index of the laser channel
+_LASER_CH = {"red": 2, "green": 1}  # BGR index of the laser channel (not the detectors')
 LEAD_IN = 8  # frames at the start with the laser off
 VISIBLE_RISE = 25  # grey levels the laser must add somewhere for the spot to be visible
 REF = (1920.0, 1080.0)  # errors in screen px of a 1920x1080 screen

@@ -69,7 +69,7 @@ from omnidev.errors import OmnidevError
 from omnidev.evaluation.framework import SceneResult, Task
 from omnidev.filters import OneEuroFilter
 from omnidev.laser.colour_spot import ColourSpotDetector
-from omnidev.laser.spot import SpotDetector
+from omnidev.laser.spot import LASER_CHANNEL, SpotDetector
 from omnidev.sim.laser_scenes import LEAD_IN, LaserScene, LaserTruth, ref_scale, screen_mask
 from omnidev.sim.screen_scenes import RESOLUTIONS
 
@@ -163,7 +163,7 @@ def run_scene(seed: int, options: Mapping[str, Any], outdir: Path | None) -> Sce
     ferr: dict[str, list[float]] = {n: [] for n in FILTERS}
     log: list[dict[str, Any]] = []
     sw, sh = scene.screen_px
-    c_laser = 2 if sc.laser.colour == "red" else 1
+    c_laser = LASER_CHANNEL[sc.laser.colour]
     frames = _frames(sc, str(options.get("cache", "")))
     for img, truth in frames:
         before = getattr(det, "refused", 0)
