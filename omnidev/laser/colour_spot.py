@@ -387,11 +387,10 @@ class ColourSpotDetector:
         self.track_px = track_px
         self.busy_gain = busy_gain
         self.bands = bands
-        if not 0.0 <= max_darker <= 1.0 or position not in ("fit", "centroid", "beam"):
-            raise ValueError(
-                "need 0 <= max_darker <= 1 and position 'beam', 'centroid' or 'fit', got"
-                f" {max_darker}, {position!r}"
-            )
+        if not 0.0 <= max_darker <= 1.0:
+            raise ValueError(f"need 0 <= max_darker <= 1, got {max_darker}")
+        if position not in ("fit", "centroid", "beam"):
+            raise ValueError(f"position must be 'beam', 'centroid' or 'fit', got {position!r}")
         self.max_darker = max_darker
         self.min_cross = min_cross
         if not 1 <= busy_events <= 16:
