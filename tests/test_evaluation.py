@@ -5,6 +5,10 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import resource
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -279,3 +283,25 @@ def test_laser_cache_is_npy_and_json_read_back_and_a_bad_file_is_rendered_again(
     redone = run_one(task, 1006, opts, None)
     assert redone.status == "ok" and redone.counts == first.counts
     assert np.array_equal(np.load(tmp_path / "laser-1006-12.npy"), frames)
+
+
+def test_laser_cache_that_cannot_be_written_leaves_the_scene_evaluated(tmp_path: Path) -> None:
+    """A cache write that fails (here a real kernel limit on file size, EFBIG, as a full
+    disk gives ENOSPC) costs the cache, not the scene: the scene is evaluated from the
+    frames in memory, one line says it was not cached, and no partial file is left."""
+    cache = tmp_path / "cache"
+    cache.mkdir()
+
+    def limit() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit: EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 20, 1 << 20))
+
+    cmd = [sys.executable, "-m", "omnidev.cli.main", "eval", "laser", "--scenes", "1"]
+    cmd += ["--seed", "1006", "--jobs", "1", "--opt", "frames=12", "--opt", "compare=0"]
+    cmd += ["--opt", f"cache={cache}"]
+    # 12 frames of 320x240: 2.8 MB of cache against a 1 MiB limit
+    run = subprocess.run(cmd, capture_output=True, text=True, preexec_fn=limit, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "scene 1006 not cached (File too large)" in run.stderr
+    assert "ok 1, refused 0, errors 0" in run.stdout
+    assert sorted(p.name for p in cache.iterdir()) == []

@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from collections import defaultdict
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -326,14 +327,22 @@ def _frames(sc: LaserScene, cache: str) -> list[tuple[np.ndarray, LaserTruth]]:
         pass  # absent or unreadable: render it
     out = list(sc.frames())
     shape = (len(out), *out[0][0].shape)
-    with atomic_path(npy, force=True) as tmp:
-        mm = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.uint8, shape=shape)
-        for i, (img, _) in enumerate(out):
-            mm[i] = img
-        mm.flush()
-        del mm
-    with atomic_path(js, force=True) as tmp:
-        tmp.write_text(json.dumps({"truth": [t.to_dict() for _, t in out]}) + "\n")
+    header = {"descr": "|u1", "fortran_order": False, "shape": shape}
+    try:
+        # written frame by frame, not through a memory map: a full disk is then an
+        # OSError here, where a memory map's page fault would kill the process (SIGBUS)
+        with atomic_path(npy, force=True) as tmp, tmp.open("wb") as f:
+            np.lib.format.write_array_header_1_0(f, header)
+            for img, _ in out:
+                f.write(np.ascontiguousarray(img, np.uint8).data)
+        with atomic_path(js, force=True) as tmp:
+            tmp.write_text(json.dumps({"truth": [t.to_dict() for _, t in out]}) + "\n")
+    except OSError as exc:  # the scene is still evaluated, from the frames in memory
+        npy.unlink(missing_ok=True)
+        print(
+            f"omnidev eval laser: cache {cache}: scene {sc.seed} not cached ({exc.strerror})",
+            file=sys.stderr,
+        )
     return out
 
 
