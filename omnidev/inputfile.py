@@ -5,7 +5,9 @@ CSVs, layouts, point files, recordings, other tools' calibrations) goes
 through :func:`read_text` or :func:`read_bytes`, so that each of them says the
 same thing, naming the file, for a folder, a symlink loop, a device such as
 /dev/zero, an unreadable file, a file far too large to be what it claims, or
-bytes that are not UTF-8 text; and none of them reads without end. The
+bytes that are not UTF-8 text; and none of them reads without end
+(:func:`not_a_file` says the same, before any reading, of a file another library opens
+later: a calibration cv2 reads, a recording, a landmark layout). The
 TOML and JSON parsers here also refuse absurd nesting and absurd numbers
 (:func:`check_magnitudes`), naming the key.
 
@@ -60,18 +62,49 @@ def _describe_size(n: int) -> str:
     return f"{n / (1 << 20):.0f} MiB" if n >= 1 << 20 else f"{n} bytes"
 
 
-def _open_error(path: Path, what: str, exc: OSError, error: type[OmnidevError]) -> OmnidevError:
+def not_a_file(path: Path | str, what: str) -> str | None:
+    """Why ``path`` cannot be read as a ``what`` (a file another reader opens later), in
+    the words of :func:`read_bytes`: "<what> not found", "is a folder, not a <what>", "is
+    a device, not a regular file; ..."; None for a regular file (symlinks followed)."""
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        return _open_reason(Path(path), what, exc)
+    return _kind_problem(st.st_mode, what)
+
+
+def _kind_problem(mode: int, what: str) -> str | None:
+    """Why a file of mode ``mode`` is not a regular file to read as a ``what``, or None."""
+    if stat.S_ISDIR(mode):
+        return f"is a folder, not a {what}"
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        kind = "a device"
+    elif stat.S_ISFIFO(mode):
+        kind = "a FIFO"
+    else:
+        kind = "a special file"
+    return f"is {kind}, not a regular file; give the {what} as a file"
+
+
+def _open_reason(path: Path, what: str, exc: OSError) -> str:
+    """Why opening ``path`` (a ``what``) failed with ``exc``, without the path."""
     if exc.errno == errno.ENOENT:
         if os.path.islink(path):
-            return error(f"{path}: {what} not found (a symlink to {os.readlink(path)!r}, absent)")
-        return error(f"{path}: {what} not found")
+            return f"{what} not found (a symlink to {os.readlink(path)!r}, absent)"
+        return f"{what} not found"
     if exc.errno == errno.ELOOP:
-        return error(f"{path}: {what} is a symlink loop")
+        return f"{what} is a symlink loop"
     if exc.errno in (errno.EACCES, errno.EPERM):
-        return error(f"{path}: permission denied reading the {what}")
+        return f"permission denied reading the {what}"
     if exc.errno == errno.EISDIR:
-        return error(f"{path}: is a folder, not a {what}")
-    return error(f"{path}: cannot read the {what}: {exc.strerror or exc}")
+        return f"is a folder, not a {what}"
+    return f"cannot read the {what}: {exc.strerror or exc}"
+
+
+def _open_error(path: Path, what: str, exc: OSError, error: type[OmnidevError]) -> OmnidevError:
+    return error(f"{path}: {_open_reason(path, what, exc)}")
 
 
 def read_bytes(
@@ -91,16 +124,9 @@ def read_bytes(
         raise _open_error(path, what, exc, error) from None
     try:
         st = os.fstat(fd)
-        if stat.S_ISDIR(st.st_mode):
-            raise error(f"{path}: is a folder, not a {what}")
-        if not stat.S_ISREG(st.st_mode):
-            if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode):
-                kind = "a device"
-            elif stat.S_ISFIFO(st.st_mode):
-                kind = "a FIFO"
-            else:
-                kind = "a special file"
-            raise error(f"{path}: is {kind}, not a regular file; give the {what} as a file")
+        why = _kind_problem(st.st_mode, what)
+        if why is not None:
+            raise error(f"{path}: {why}")
         if st.st_size > limit:
             raise error(
                 f"{path}: {_describe_size(st.st_size)}, larger than any {what} "

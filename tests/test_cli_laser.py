@@ -77,6 +77,10 @@ def test_laser_over_the_fixture_videos_together(chains):
 def test_laser_cli_errors(tmp_path, capsys):
     assert main(["laser", "x.avi", "--calibration", str(tmp_path / "none.yml")]) == 2
     assert "screen calibration file not found" in capsys.readouterr().err
+    assert main(["laser", "x.avi", "--calibration", str(tmp_path)]) == 2
+    assert f"{tmp_path}: is a folder, not a screen calibration file" in capsys.readouterr().err
+    assert main(["laser", "x.avi", "--calibration", "/dev/null"]) == 2
+    assert "/dev/null: is a device, not a regular file" in capsys.readouterr().err
 
 
 def test_laser_cli_detector_options(tmp_path, capsys):

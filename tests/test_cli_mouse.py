@@ -19,6 +19,8 @@ def layout_dict():
 def test_mouse_cli_errors(tmp_path, capsys):
     assert main(["mouse", "nope.avi", "--layout", str(tmp_path / "l.json")]) == 2
     assert "landmark layout file not found" in capsys.readouterr().err
+    assert main(["mouse", "nope.avi", "--layout", str(tmp_path)]) == 2
+    assert f"{tmp_path}: is a folder, not a landmark layout file" in capsys.readouterr().err
     layout = tmp_path / "l.json"
     layout.write_text(json.dumps(layout_dict()))
     assert main(["mouse", str(tmp_path / "missing.avi"), "--layout", str(layout)]) == 2

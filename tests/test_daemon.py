@@ -56,7 +56,16 @@ def wait_for(pred, timeout=20.0):
         ("[camera]\n", "camera: unknown section"),
         (
             '[source]\nuri="a"\n[tracker]\nname="x"\ncalibration="nope.yml"\n',
-            "tracker.calibration: file",
+            "nope.yml: calibration file not found",
+        ),
+        (
+            '[source]\nuri="a"\n[tracker]\nname="x"\ncalibration="."\n',
+            "is a folder, not a calibration file",  # the configuration's own folder
+        ),
+        (
+            '[source]\nuri="a"\n[tracker]\nname="x"\ncalibration="/dev/null"\n',
+            "tracker.calibration: /dev/null: is a device, not a regular file; give the "
+            "calibration file as a file",
         ),
         (
             '[source]\nuri="a"\n[tracker]\nname="x"\n[sink]\nname="r"\n[daemon]\nqueue=0\n',
@@ -249,6 +258,8 @@ def test_replay_cli_reproduces_a_recording(tmp_path, capsys):
     assert strip == [{k: v for k, v in e.items() if k != "t_ns"} for e in b]
     assert main(["replay", str(tmp_path / "none.jsonl"), "--sink", "record"]) == 2
     assert "recording not found" in capsys.readouterr().err
+    assert main(["replay", "/dev/null", "--sink", "record"]) == 2
+    assert "/dev/null: is a device, not a regular file" in capsys.readouterr().err
 
 
 def test_frame_size_change_stops_with_buttons_released(tmp_path):

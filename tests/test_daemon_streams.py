@@ -273,7 +273,10 @@ def test_unknown_camera_and_duplicate_view_names(clip, tmp_path, capsys):
         stream_toml(str(video), tmp_path / "none.yml", [("v", "perspective:64x48", "raw:-", "")]),
     )
     assert daemon_main(["--config", str(config), "--check"]) == 2
-    assert "camera: file" in capsys.readouterr().err
+    assert f"camera: {tmp_path / 'none.yml'}: camera file not found" in capsys.readouterr().err
+    folder = stream_toml(str(video), tmp_path, [("v", "perspective:64x48", "raw:-", "")])
+    assert daemon_main(["--config", str(write_config(tmp_path, folder)), "--check"]) == 2
+    assert f"camera: {tmp_path}: is a folder, not a camera file" in capsys.readouterr().err
     twice = stream_toml(str(video), cam, [("v", "perspective:64x48", "raw:-", "")])
     config = write_config(tmp_path, twice + twice.replace('name = "s"', 'name = "t"'))
     assert daemon_main(["--config", str(config), "--check"]) == 2

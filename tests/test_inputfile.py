@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from omnidev.errors import ConfigError
-from omnidev.inputfile import loads_json, loads_toml, read_bytes
+from omnidev.inputfile import loads_json, loads_toml, not_a_file, read_bytes
 
 
 def _refusal(path: Path | str) -> str:
@@ -31,6 +31,22 @@ def test_refuses_what_is_not_a_regular_file(tmp_path):
     os.mkfifo(fifo)  # opened non-blocking: no writer, no hang
     assert _refusal(fifo) == f"{fifo}: is a FIFO, not a regular file; give the rig file as a file"
     assert _refusal(tmp_path) == f"{tmp_path}: is a folder, not a rig file"
+
+
+def test_not_a_file_says_what_read_bytes_would(tmp_path):
+    """For a file another reader opens later (cv2.FileStorage, a video): the same words."""
+    f = tmp_path / "screen.yml"
+    f.write_text("%YAML:1.0\n")
+    assert not_a_file(f, "rig file") is None
+    assert not_a_file(tmp_path / "absent.yml", "rig file") == "rig file not found"
+    link = tmp_path / "link.yml"
+    link.symlink_to(tmp_path / "gone.yml")
+    assert (
+        not_a_file(link, "rig file")
+        == f"rig file not found (a symlink to {str(tmp_path / 'gone.yml')!r}, absent)"
+    )
+    for path in ("/dev/zero", tmp_path):
+        assert f"{path}: {not_a_file(path, 'rig file')}" == _refusal(path)
 
 
 @pytest.mark.parametrize(

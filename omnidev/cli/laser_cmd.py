@@ -54,9 +54,11 @@ def register(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from omnidev.cli.foreground import run_foreground
+    from omnidev.inputfile import not_a_file
 
-    if not args.calibration.is_file():
-        raise OmnidevError(f"{args.calibration}: screen calibration file not found")
+    why = not_a_file(args.calibration, "screen calibration file")
+    if why is not None:
+        raise OmnidevError(f"{args.calibration}: {why}")
     options: dict[str, Any] = {"colour": args.colour, "method": args.method}
     for item in args.detector_option:
         key, sep, value = item.partition("=")

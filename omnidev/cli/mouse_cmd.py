@@ -95,9 +95,11 @@ def register(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from omnidev.cli.foreground import run_foreground
+    from omnidev.inputfile import not_a_file
 
-    if not args.layout.is_file():
-        raise OmnidevError(f"{args.layout}: landmark layout file not found")
+    why = not_a_file(args.layout, "landmark layout file")
+    if why is not None:
+        raise OmnidevError(f"{args.layout}: {why}")
     tracker = {
         "name": "camera-mouse",
         "calibration": str(args.layout.resolve()),

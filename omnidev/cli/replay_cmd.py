@@ -44,12 +44,14 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omnidev.inputfile import not_a_file
     from omnidev.screen import ScreenMapping, ScreenRect
     from omnidev.sinks import open_sink, release_on_signals
     from omnidev.sinks.record import replay
 
-    if not args.recording.is_file():
-        raise OmnidevError(f"{args.recording}: recording not found")
+    why = not_a_file(args.recording, "recording")
+    if why is not None:
+        raise OmnidevError(f"{args.recording}: {why}")
     options = sink_options(args.sink_option)
     try:
         rect = ScreenRect.parse(args.screen)

@@ -64,7 +64,7 @@ from typing import Any
 from omnidev.daemon.control import DEFAULT_SOCKET
 from omnidev.daemon.streams import StreamConfig, parse_streams
 from omnidev.errors import ConfigError
-from omnidev.inputfile import read_toml
+from omnidev.inputfile import not_a_file, read_toml
 from omnidev.screen import ScreenMapping, ScreenRect
 from omnidev.sources import resolve_uri
 
@@ -218,8 +218,9 @@ def parse_config(doc: dict[str, Any], path: Path) -> DaemonConfig:
     calibration = Path(calib_text) if calib_text else None
     if calibration is not None and not calibration.is_absolute():
         calibration = path.parent / calibration
-    if calibration is not None and not calibration.is_file():
-        raise fail("tracker.calibration", f"file {calibration} not found")
+    why = None if calibration is None else not_a_file(calibration, "calibration file")
+    if why is not None:
+        raise fail("tracker.calibration", f"{calibration}: {why}")
     tracker_options = get("tracker", "options", dict, {})
     sink = get("sink", "name", str)
     sink_options = dict(get("sink", "options", dict, {}))

@@ -73,6 +73,7 @@ from omnidev.camera import CameraModel, Remapper, build_maps
 from omnidev.daemon.queues import put_dropping_oldest
 from omnidev.errors import ConfigError, FileSourceError, OmnidevError, PluginError
 from omnidev.frame import Frame
+from omnidev.inputfile import not_a_file
 from omnidev.outputs import GROUP as OUTPUTS
 from omnidev.outputs import MAX_FPS, Output, OutputSpec, open_output, split_output_uri
 from omnidev.outputs.pixels import to_layout
@@ -174,8 +175,9 @@ def parse_streams(doc: Any, path: Path) -> tuple[StreamConfig, ...]:
         camera = Path(get("camera", str, where=where))
         if not camera.is_absolute():
             camera = path.parent / camera
-        if not camera.is_file():
-            raise fail(f"{where}.camera", f"file {camera} not found")
+        why = not_a_file(camera, "camera file")
+        if why is not None:
+            raise fail(f"{where}.camera", f"{camera}: {why}")
         options = get("camera_options", dict, {}, where=where)
         camera_options = {str(k): str(v) for k, v in options.items()}
         interpolation = get("interpolation", str, "linear", where=where)
